@@ -1,0 +1,157 @@
+"""Client side of the sim: Gazebo's services, the lockstep step, counted command publishers and
+sensor subscribers that wait (bounded) for fresh readings.
+
+Every wait here has a timeout and fails with a SimConnectionError naming the topic or service and
+what to check. Service proxies are persistent (one socket for the whole run).
+"""
+from __future__ import annotations
+
+import threading
+import time
+from typing import Callable, Generic, Iterable, Optional, TypeVar
+
+import rospy
+from std_msgs.msg import Float64
+from std_srvs.srv import Empty
+
+from pybullet_sim.srv import Step, StepRequest
+
+STEP_SERVICE = "/pybullet_sim/step"
+GAZEBO_SERVICES = ("/gazebo/pause_physics", "/gazebo/unpause_physics", "/gazebo/reset_world",
+                   "/gazebo/reset_simulation")
+HINT = "is the sim node running? (e.g. ./ws exec roslaunch launch/cube_sim.launch)"
+
+Reading = TypeVar("Reading")
+
+
+class SimConnectionError(RuntimeError):
+    """The simulator did not answer, or answered with an error; the message says where and why."""
+
+
+class CommandPublisher:
+    """A std_msgs/Float64 command publisher that counts what it sent, for the lockstep guarantee."""
+
+    def __init__(self, topic: str, queue_size: int = 1):
+        self.topic = rospy.resolve_name(topic)
+        self.count = 0
+        self._publisher = rospy.Publisher(self.topic, Float64, queue_size=queue_size)
+
+    def wait_for_subscriber(self, timeout: float) -> None:
+        """Block until the sim node subscribes (a message sent before that would be lost)."""
+        end = time.monotonic() + timeout
+        while self._publisher.get_num_connections() == 0:
+            if rospy.is_shutdown():
+                raise SimConnectionError(f"shutdown while waiting for a subscriber on {self.topic}")
+            if time.monotonic() > end:
+                raise SimConnectionError(f"nobody subscribed to {self.topic} within {timeout} s; {HINT}")
+            time.sleep(0.01)
+
+    def publish(self, value: float) -> None:
+        self._publisher.publish(Float64(value))
+        self.count += 1
+
+    def unregister(self) -> None:
+        self._publisher.unregister()
+
+
+class SensorSubscriber(Generic[Reading]):
+    """Keeps the latest message of a topic (converted to a reading) and lets callers wait for a newer one."""
+
+    def __init__(self, topic: str, msg_type, to_reading: Callable[[object], Reading]):
+        self.topic = rospy.resolve_name(topic)
+        self._to_reading = to_reading
+        self._condition = threading.Condition()
+        self._count = 0
+        self._latest_msg = None
+        self._subscriber = rospy.Subscriber(self.topic, msg_type, self._callback, tcp_nodelay=True)
+
+    def _callback(self, msg) -> None:
+        with self._condition:
+            self._latest_msg = msg
+            self._count += 1
+            self._condition.notify_all()
+
+    @property
+    def count(self) -> int:
+        """How many messages have arrived; take it before a call, then wait_newer(count)."""
+        return self._count
+
+    @property
+    def latest(self) -> Optional[Reading]:
+        msg = self._latest_msg
+        return None if msg is None else self._to_reading(msg)
+
+    @property
+    def latest_msg(self):
+        return self._latest_msg
+
+    def wait_newer(self, count: int, timeout: float, stamp: Optional[rospy.Time] = None) -> Reading:
+        """Wait for a message after the `count`-th (and stamped `stamp` if given); return its reading."""
+        def arrived():
+            return self._count > count and (stamp is None or self._latest_msg.header.stamp == stamp)
+        with self._condition:
+            if not self._condition.wait_for(arrived, timeout):
+                expected = f" stamped {stamp.to_sec():.6f} s" if stamp is not None else ""
+                got = "" if self._latest_msg is None else \
+                    f" (latest is stamped {self._latest_msg.header.stamp.to_sec():.6f} s)"
+                raise SimConnectionError(f"no new message on {self.topic}{expected} within {timeout} s{got}; "
+                                         f"{HINT} Check `rostopic hz {self.topic}`.")
+            return self._to_reading(self._latest_msg)
+
+    def wait_first(self, timeout: float) -> Reading:
+        """Wait until at least one message has arrived."""
+        return self.wait_newer(0, timeout)
+
+    def unregister(self) -> None:
+        self._subscriber.unregister()
+
+
+class SimConnection:
+    """pause / unpause / reset_world / reset_simulation / step on the sim node."""
+
+    def __init__(self, timeout: float = 10.0):
+        self.timeout = timeout
+        for name in GAZEBO_SERVICES + (STEP_SERVICE,):
+            try:
+                rospy.wait_for_service(name, timeout)
+            except rospy.ROSException:
+                raise SimConnectionError(f"service {name} is not available after {timeout} s; {HINT}") from None
+        self._empty = {name: rospy.ServiceProxy(name, Empty, persistent=True) for name in GAZEBO_SERVICES}
+        self._step = rospy.ServiceProxy(STEP_SERVICE, Step, persistent=True)
+        self._request = StepRequest()
+
+    def _call_empty(self, name: str) -> None:
+        try:
+            self._empty[name]()
+        except (rospy.ServiceException, rospy.ROSException) as error:
+            raise SimConnectionError(f"service {name} failed: {error}; {HINT}") from None
+
+    def pause(self) -> None:
+        self._call_empty("/gazebo/pause_physics")
+
+    def unpause(self) -> None:
+        self._call_empty("/gazebo/unpause_physics")
+
+    def reset_world(self) -> None:
+        self._call_empty("/gazebo/reset_world")
+
+    def reset_simulation(self) -> None:
+        self._call_empty("/gazebo/reset_simulation")
+
+    def step(self, steps: int, commands: Iterable[CommandPublisher] = ()) -> rospy.Time:
+        """Advance the paused sim `steps` physics steps after it has received `commands`' messages.
+
+        Returns the new sim time, which stamps every sensor message this step published."""
+        request = self._request
+        request.steps = steps
+        request.command_topics = [c.topic for c in commands]
+        request.command_counts = [c.count for c in commands]
+        try:
+            return self._step(request).stamp
+        except (rospy.ServiceException, rospy.ROSException) as error:
+            raise SimConnectionError(f"service {STEP_SERVICE} failed: {error}") from None
+
+    def close(self) -> None:
+        for proxy in (*self._empty.values(), self._step):
+            proxy.close()
+

@@ -1,0 +1,155 @@
+"""Robot configuration for the simulator: ros_control-style controllers and Gazebo-plugin-style sensors.
+
+The sim node loads one YAML (config/<robot>_sim.yaml) into its private namespace; `parse_robot_config`
+turns that dict into the dataclasses below and names the offending parameter on any mistake. Nothing
+here is robot specific: robots differ only by URDF and this YAML.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Dict, Mapping, Optional, Tuple
+
+JOINT_STATE_CONTROLLER = "joint_state_controller/JointStateController"
+VELOCITY_CONTROLLER = "effort_controllers/JointVelocityController"
+POSITION_CONTROLLER = "effort_controllers/JointPositionController"
+SENSOR_TYPES = ("p3d", "imu", "contact")
+
+
+class ConfigError(ValueError):
+    """A parameter of the simulator is missing, mistyped or out of range; the message names it."""
+
+
+@dataclass(frozen=True)
+class PidGains:
+    p: float
+    i: float = 0.0
+    d: float = 0.0
+    i_clamp: float = 0.0  # symmetric bound on the integral term's contribution; 0 = no integral
+
+
+@dataclass(frozen=True)
+class JointControllerConfig:
+    """An effort PID controller on one joint, listening on <robot_namespace>/<name>/command."""
+
+    name: str
+    type: str
+    joint: str
+    pid: PidGains
+
+    @property
+    def is_position(self) -> bool:
+        return self.type == POSITION_CONTROLLER
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    """A sensor of type p3d (odometry), imu or contact, attached to `link`."""
+
+    name: str
+    type: str
+    link: str
+    topic: str
+    frame_id: str
+    update_rate: float
+    gaussian_noise: float = 0.0
+
+
+@dataclass(frozen=True)
+class RobotConfig:
+    robot_namespace: str
+    spawn_xyz: Tuple[float, float, float]
+    spawn_rpy: Tuple[float, float, float]
+    joint_state_rate: float
+    controllers: Tuple[JointControllerConfig, ...]
+    sensors: Tuple[SensorConfig, ...]
+
+    @property
+    def joint_states_topic(self) -> str:
+        return f"{self.robot_namespace}/joint_states"
+
+    def command_topic(self, controller: JointControllerConfig) -> str:
+        return f"{self.robot_namespace}/{controller.name}/command"
+
+
+def _number(params: Mapping[str, Any], key: str, where: str, default: Optional[float] = None,
+            minimum: Optional[float] = None, exclusive_minimum: bool = False) -> float:
+    if key not in params:
+        if default is None:
+            raise ConfigError(f"missing parameter {where}/{key}")
+        return float(default)
+    value = params[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ConfigError(f"parameter {where}/{key} must be a finite number, got {value!r}")
+    if minimum is not None and (value < minimum or (exclusive_minimum and value == minimum)):
+        relation = ">" if exclusive_minimum else ">="
+        raise ConfigError(f"parameter {where}/{key} must be {relation} {minimum}, got {value!r}")
+    return float(value)
+
+
+def _text(params: Mapping[str, Any], key: str, where: str, default: Optional[str] = None) -> str:
+    value = params.get(key, default)
+    if value is None:
+        raise ConfigError(f"missing parameter {where}/{key}")
+    if not isinstance(value, str) or not value:
+        raise ConfigError(f"parameter {where}/{key} must be a non-empty string, got {value!r}")
+    return value
+
+
+def _mapping(params: Mapping[str, Any], key: str, where: str) -> Dict[str, Any]:
+    value = params.get(key, {})
+    if not isinstance(value, dict):
+        raise ConfigError(f"parameter {where}/{key} must be a dictionary, got {value!r}")
+    return value
+
+
+def parse_robot_config(params: Mapping[str, Any], where: str = "~") -> RobotConfig:
+    """Build a RobotConfig from the sim node's private parameters (`where` prefixes error messages)."""
+    namespace = _text(params, "robot_namespace", where)
+    if not namespace.startswith("/"):
+        raise ConfigError(f"parameter {where}/robot_namespace must be absolute (start with '/'), got {namespace!r}")
+    namespace = namespace.rstrip("/")
+    spawn = _mapping(params, "spawn", where)
+    spawn_where = f"{where}/spawn"
+    xyz = tuple(_number(spawn, k, spawn_where, 0.0) for k in ("x", "y", "z"))
+    rpy = tuple(_number(spawn, k, spawn_where, 0.0) for k in ("roll", "pitch", "yaw"))
+
+    controllers = []
+    joint_state_rate = None
+    for name, entry in sorted(_mapping(params, "controllers", where).items()):
+        c_where = f"{where}/controllers/{name}"
+        if not isinstance(entry, dict):
+            raise ConfigError(f"parameter {c_where} must be a dictionary")
+        ctype = _text(entry, "type", c_where)
+        if ctype == JOINT_STATE_CONTROLLER:
+            joint_state_rate = _number(entry, "publish_rate", c_where, minimum=0.0, exclusive_minimum=True)
+            continue
+        if ctype not in (VELOCITY_CONTROLLER, POSITION_CONTROLLER):
+            raise ConfigError(f"parameter {c_where}/type: unsupported controller type {ctype!r} "
+                              f"(supported: {JOINT_STATE_CONTROLLER}, {VELOCITY_CONTROLLER}, {POSITION_CONTROLLER})")
+        pid = _mapping(entry, "pid", c_where)
+        p_where = f"{c_where}/pid"
+        gains = PidGains(p=_number(pid, "p", p_where), i=_number(pid, "i", p_where, 0.0),
+                         d=_number(pid, "d", p_where, 0.0), i_clamp=_number(pid, "i_clamp", p_where, 0.0, minimum=0.0))
+        controllers.append(JointControllerConfig(name=name, type=ctype, joint=_text(entry, "joint", c_where), pid=gains))
+    if joint_state_rate is None:
+        raise ConfigError(f"parameter {where}/controllers needs a {JOINT_STATE_CONTROLLER} with a publish_rate")
+
+    sensors = []
+    for name, entry in sorted(_mapping(params, "sensors", where).items()):
+        s_where = f"{where}/sensors/{name}"
+        if not isinstance(entry, dict):
+            raise ConfigError(f"parameter {s_where} must be a dictionary")
+        stype = _text(entry, "type", s_where)
+        if stype not in SENSOR_TYPES:
+            raise ConfigError(f"parameter {s_where}/type: unsupported sensor type {stype!r} (supported: {', '.join(SENSOR_TYPES)})")
+        topic = _text(entry, "topic", s_where)
+        if not topic.startswith("/"):
+            raise ConfigError(f"parameter {s_where}/topic must be absolute (start with '/'), got {topic!r}")
+        sensors.append(SensorConfig(
+            name=name, type=stype, link=_text(entry, "link", s_where), topic=topic,
+            frame_id=_text(entry, "frame_id", s_where),
+            update_rate=_number(entry, "update_rate", s_where, minimum=0.0, exclusive_minimum=True),
+            gaussian_noise=_number(entry, "gaussian_noise", s_where, 0.0, minimum=0.0)))
+    return RobotConfig(robot_namespace=namespace, spawn_xyz=xyz, spawn_rpy=rpy, joint_state_rate=joint_state_rate,
+                       controllers=tuple(controllers), sensors=tuple(sensors))

@@ -1,0 +1,67 @@
+"""Crash-safe file writing: write a temp file in the target's directory, fsync, rename over."""
+from __future__ import annotations
+
+import json
+import os
+import secrets
+from pathlib import Path
+from typing import Any
+
+StrPath = str | os.PathLike
+
+
+def _temp_name(path: Path) -> Path:
+    return path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
+
+
+def _fsync_dir(directory: Path) -> None:
+    fd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def write_bytes_atomic(path: StrPath, data: bytes) -> None:
+    """Replace `path` with `data` so readers see either the old or the new content, never a mix."""
+    path = Path(path)
+    tmp = _temp_name(path)
+    # os.open with 0o666 (not mkstemp's 0o600) so the final file honours the umask.
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    _fsync_dir(path.parent)
+
+
+def write_text_atomic(path: StrPath, text: str) -> None:
+    """Atomically replace `path` with `text` (UTF-8)."""
+    write_bytes_atomic(path, text.encode("utf-8"))
+
+
+def write_json_atomic(path: StrPath, obj: Any) -> None:
+    """Atomically write `obj` as JSON; NaN/inf raise ValueError (strict JSON only)."""
+    try:
+        text = json.dumps(obj, indent=None, sort_keys=True, allow_nan=False)
+    except ValueError as e:
+        raise ValueError(f"{path}: {e}") from e
+    write_text_atomic(path, text + "\n")
+
+
+def symlink_atomic(target: StrPath, link_path: StrPath) -> None:
+    """Point the symlink `link_path` at `target`, replacing any existing link atomically."""
+    link_path = Path(link_path)
+    tmp = _temp_name(link_path)
+    os.symlink(target, tmp)
+    try:
+        os.replace(tmp, link_path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    _fsync_dir(link_path.parent)

@@ -1,0 +1,82 @@
+"""Observation -> Q-table state key, by binning each used dimension with numpy.digitize.
+
+Replaces the tutorials' keys built by concatenating str(float) values, in which "-0.0" and "0.0"
+were different states and nothing separated the numbers. Keys here are bin indices joined by "_".
+"""
+from __future__ import annotations
+
+import math
+from typing import Any, Sequence
+
+import numpy as np
+
+FORMAT = "robot_rl.discretiser/1"
+
+
+class Discretiser:
+    """Per-dimension edges numpy.linspace(low[i], high[i], bins[i]); indices run 0..bins[i]."""
+
+    def __init__(self, low: Sequence[float], high: Sequence[float], bins: int | Sequence[int],
+                 indices: Sequence[int] | None = None) -> None:
+        self.low = [float(v) for v in low]
+        self.high = [float(v) for v in high]
+        n = len(self.low)
+        if n == 0 or len(self.high) != n:
+            raise ValueError(f"low and high need the same non-zero length, got {n} and {len(self.high)}")
+        for i, (lo, hi) in enumerate(zip(self.low, self.high)):
+            if not lo < hi:  # also rejects NaN
+                raise ValueError(f"dimension {i}: need low < high, got low={lo}, high={hi}")
+        bins_list = [bins] * n if isinstance(bins, (int, np.integer)) else list(bins)
+        if len(bins_list) != n:
+            raise ValueError(f"bins has {len(bins_list)} entries, expected {n} (one per dimension)")
+        for i, b in enumerate(bins_list):
+            if isinstance(b, bool) or not isinstance(b, (int, np.integer)) or b < 2:
+                raise ValueError(f"dimension {i}: bins must be an int >= 2, got {b!r}")
+        self.bins = [int(b) for b in bins_list]
+        self.indices = None if indices is None else [int(i) for i in indices]
+        if self.indices is not None and len(self.indices) != n:
+            raise ValueError(f"indices has {len(self.indices)} entries, low/high have {n}")
+        if self.indices is not None and min(self.indices) < 0:
+            raise ValueError(f"indices must be >= 0, got {self.indices}")
+        self.edges = [np.linspace(lo, hi, b) for lo, hi, b in zip(self.low, self.high, self.bins)]
+
+    def _select(self, obs: Any) -> np.ndarray:
+        arr = np.asarray(obs, dtype=float)
+        if arr.ndim != 1:
+            raise ValueError(f"observation must be 1-D, got shape {arr.shape}")
+        if self.indices is None:
+            if arr.size != len(self.low):
+                raise ValueError(f"observation has {arr.size} values, discretiser expects {len(self.low)}")
+            used, dims = arr, range(arr.size)
+        else:
+            if max(self.indices) >= arr.size:
+                raise ValueError(f"observation has {arr.size} values, indices {self.indices} need "
+                                 f"at least {max(self.indices) + 1}")
+            used, dims = arr[self.indices], self.indices
+        nan = np.flatnonzero(np.isnan(used))
+        if nan.size:
+            raise ValueError(f"observation dimension {dims[nan[0]]} is NaN")
+        return used
+
+    def digitise(self, obs: Any) -> tuple[int, ...]:
+        """Bin index per used dimension: 0 below low, bins[i] at or above high."""
+        return tuple(int(np.digitize(v, e)) for v, e in zip(self._select(obs), self.edges))
+
+    def key(self, obs: Any) -> str:
+        """State key such as "5_5_5_5_1_5_5_10"."""
+        return "_".join(str(i) for i in self.digitise(obs))
+
+    @property
+    def n_states(self) -> int:
+        return math.prod(b + 1 for b in self.bins)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"format": FORMAT, "low": self.low, "high": self.high, "bins": self.bins,
+                "indices": self.indices}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Discretiser:
+        fmt = d.get("format") if isinstance(d, dict) else None
+        if fmt != FORMAT:
+            raise ValueError(f"not a Discretiser: format is {fmt!r}, expected {FORMAT!r}")
+        return cls(d["low"], d["high"], d["bins"], d["indices"])

@@ -1,0 +1,120 @@
+"""Tabular Q-learning with the semantics of The Construct tutorials' qlearn.py (Victor Mayoral).
+
+Differences from the tutorial:
+- every random draw comes from the instance's own ``random.Random(seed)``, never the global module;
+- ``learn(..., terminal=True)`` uses the reward alone as target: the tutorial bootstrapped from
+  the Q-values of the terminal state, which never get updated and so only add noise;
+- the table, hyper-parameters and RNG state are saved as JSON (no pickle) and reload exactly.
+"""
+from __future__ import annotations
+
+import json
+import random
+from pathlib import Path
+from typing import Any, Iterable
+
+from robot_rl.atomic import StrPath, write_json_atomic
+
+FORMAT = "robot_rl.qlearn/1"
+
+
+def _to_lists(value: Any) -> Any:
+    if isinstance(value, tuple):
+        return [_to_lists(v) for v in value]
+    return value
+
+
+def _to_tuples(value: Any) -> Any:
+    if isinstance(value, list):
+        return tuple(_to_tuples(v) for v in value)
+    return value
+
+
+class QLearn:
+    """Q-table keyed by (state, action) with epsilon-noise exploration."""
+
+    def __init__(self, actions: Iterable[int], epsilon: float, alpha: float, gamma: float,
+                 seed: int | None = None) -> None:
+        self.q: dict[tuple[str, int], float] = {}
+        self.epsilon = epsilon  # exploration probability
+        self.alpha = alpha      # learning rate
+        self.gamma = gamma      # discount factor
+        self.actions = [int(a) for a in actions]
+        self.rng = random.Random(seed)
+
+    def getQ(self, state: str, action: int) -> float:
+        return self.q.get((state, action), 0.0)
+
+    def learnQ(self, state: str, action: int, reward: float, value: float) -> None:
+        """Move Q towards `value`; a first visit stores `reward` itself (tutorial rule)."""
+        old = self.q.get((state, action))
+        if old is None:
+            self.q[(state, action)] = reward
+        else:
+            self.q[(state, action)] = old + self.alpha * (value - old)
+
+    def learn(self, state1: str, action1: int, reward: float, state2: str,
+              terminal: bool = False) -> None:
+        """One Q-learning update; with `terminal` the target is the reward (no bootstrap)."""
+        if terminal:
+            target = reward
+        else:
+            maxqnew = max(self.getQ(state2, a) for a in self.actions)
+            target = reward + self.gamma * maxqnew
+        self.learnQ(state1, action1, reward, target)
+
+    def _pick(self, q: list[float]) -> int:
+        """Index of the maximum of `q`, ties broken at random."""
+        maxQ = max(q)
+        if q.count(maxQ) > 1:
+            return self.rng.choice([i for i in range(len(self.actions)) if q[i] == maxQ])
+        return q.index(maxQ)
+
+    def chooseAction(self, state: str, return_q: bool = False) -> int | tuple[int, list[float]]:
+        """Epsilon-noise action choice; returns (action, q) when `return_q`."""
+        q = [self.getQ(state, a) for a in self.actions]
+        maxQ = max(q)
+        if self.rng.random() < self.epsilon:
+            mag = max(abs(min(q)), abs(maxQ))
+            q = [q[i] + self.rng.random() * mag - .5 * mag for i in range(len(self.actions))]
+        action = self.actions[self._pick(q)]
+        if return_q:
+            return action, q
+        return action
+
+    def greedy_action(self, state: str) -> int:
+        """Best known action, no exploration (for evaluation)."""
+        return self.actions[self._pick([self.getQ(state, a) for a in self.actions])]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able snapshot of table, hyper-parameters and RNG state."""
+        for state, _ in self.q:
+            if not isinstance(state, str):
+                raise TypeError(f"Q-table state keys must be str to be saved, got {state!r}")
+        return {
+            "format": FORMAT,
+            "actions": list(self.actions),
+            "alpha": self.alpha,
+            "gamma": self.gamma,
+            "epsilon": self.epsilon,
+            "q": [[s, int(a), float(v)] for (s, a), v in sorted(self.q.items())],
+            "rng_state": _to_lists(self.rng.getstate()),
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> QLearn:
+        """Inverse of to_dict(); raises ValueError on a foreign or unknown format."""
+        fmt = d.get("format") if isinstance(d, dict) else None
+        if fmt != FORMAT:
+            raise ValueError(f"not a QLearn table: format is {fmt!r}, expected {FORMAT!r}")
+        ql = cls(d["actions"], d["epsilon"], d["alpha"], d["gamma"])
+        ql.q = {(str(s), int(a)): float(v) for s, a, v in d["q"]}
+        ql.rng.setstate(_to_tuples(d["rng_state"]))
+        return ql
+
+    def save(self, path: StrPath) -> None:
+        write_json_atomic(path, self.to_dict())
+
+    @classmethod
+    def load(cls, path: StrPath) -> QLearn:
+        return cls.from_dict(json.loads(Path(path).read_text(encoding="utf-8")))

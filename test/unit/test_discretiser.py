@@ -1,0 +1,77 @@
+"""Unit tests for robot_rl.discretiser (no ROS needed)."""
+import math
+
+import pytest
+
+from robot_rl.discretiser import Discretiser
+
+LOW = [-2.5, -1.57, -1.57, -2 * math.pi, 0.0, -1.6, -1.6, -1.6]
+HIGH = [2.5, 1.57, 1.57, 2 * math.pi, 14.16, 1.6, 1.6, 0.0]
+
+
+def hopper():
+    return Discretiser(LOW, HIGH, bins=10)
+
+
+def test_hopper_upright_at_origin():
+    # distance 0, roll/pitch/yaw 0, contact force 0, joints 0 (tutorial key "5.05.05.05.01.05.05.010.0")
+    d = hopper()
+    obs = [0.0] * 8
+    assert d.digitise(obs) == (5, 5, 5, 5, 1, 5, 5, 10)
+    assert d.key(obs) == "5_5_5_5_1_5_5_10"
+    assert d.n_states == 11 ** 8
+
+
+def test_negative_zero_same_key():
+    d = hopper()
+    assert d.key([-0.0] * 8) == d.key([0.0] * 8)
+
+
+def test_out_of_range_maps_to_end_bins():
+    d = hopper()
+    below = [lo - 1.0 for lo in LOW]
+    above = [hi + 1.0 for hi in HIGH]
+    assert d.digitise(below) == (0,) * 8
+    assert d.digitise(above) == (10,) * 8
+    assert d.digitise([math.inf] * 8) == (10,) * 8
+
+
+def test_indices_subset_and_per_dimension_bins():
+    d = Discretiser([-1.0, 0.0], [1.0, 10.0], bins=[3, 11], indices=[0, 4])
+    obs = [0.1, 99.0, -99.0, math.nan, 5.0]  # unused dims may hold anything, even NaN
+    assert d.key(obs) == "2_6"
+    assert d.n_states == 4 * 12
+    with pytest.raises(ValueError, match="indices"):
+        d.key([0.0, 0.0, 0.0])
+
+
+def test_nan_raises_naming_dimension():
+    obs = [0.0] * 8
+    obs[3] = math.nan
+    with pytest.raises(ValueError, match="dimension 3"):
+        hopper().key(obs)
+
+
+def test_length_mismatch_raises():
+    with pytest.raises(ValueError, match="8"):
+        hopper().key([0.0] * 7)
+
+
+def test_bad_construction():
+    with pytest.raises(ValueError):
+        Discretiser([0.0], [1.0], bins=1)
+    with pytest.raises(ValueError):
+        Discretiser([0.0, 0.0], [1.0], bins=5)
+    with pytest.raises(ValueError):
+        Discretiser([1.0], [0.0], bins=5)
+    with pytest.raises(ValueError):
+        Discretiser([math.nan], [1.0], bins=5)
+
+
+def test_dict_round_trip():
+    d = Discretiser([-1.0, 0.0], [1.0, 10.0], bins=[3, 11], indices=[0, 4])
+    d2 = Discretiser.from_dict(d.to_dict())
+    assert d2.to_dict() == d.to_dict()
+    assert d2.key([0.1, 0, 0, 0, 5.0]) == "2_6"
+    with pytest.raises(ValueError, match="format"):
+        Discretiser.from_dict({"format": "x"})

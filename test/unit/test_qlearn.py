@@ -1,0 +1,117 @@
+"""Unit tests for robot_rl.qlearn (no ROS needed)."""
+import json
+
+import pytest
+
+from robot_rl.qlearn import QLearn
+
+ACTIONS = [0, 1, 2, 3, 4]
+
+
+def make(epsilon=0.0, seed=0):
+    return QLearn(ACTIONS, epsilon=epsilon, alpha=0.5, gamma=0.9, seed=seed)
+
+
+def test_first_visit_stores_reward_not_target():
+    ql = make()
+    ql.q[("s2", 3)] = 10.0
+    ql.learn("s1", 0, 2.0, "s2")
+    assert ql.getQ("s1", 0) == 2.0
+
+
+def test_update_rule_for_seen_pair():
+    ql = make()
+    ql.q[("s1", 0)] = 1.0
+    ql.q[("s2", 1)] = 4.0
+    ql.q[("s2", 2)] = -3.0
+    ql.learn("s1", 0, 2.0, "s2")
+    # target = 2 + 0.9 * 4 = 5.6; Q = 1 + 0.5 * (5.6 - 1) = 3.3
+    assert ql.getQ("s1", 0) == pytest.approx(3.3)
+
+
+def test_terminal_drops_bootstrap():
+    ql = make()
+    ql.q[("s1", 0)] = 1.0
+    ql.q[("s2", 1)] = 4.0
+    ql.learn("s1", 0, 2.0, "s2", terminal=True)
+    # target = 2; Q = 1 + 0.5 * (2 - 1) = 1.5
+    assert ql.getQ("s1", 0) == pytest.approx(1.5)
+
+
+def test_unseen_q_is_zero():
+    assert make().getQ("nowhere", 2) == 0.0
+
+
+def test_epsilon_zero_picks_argmax():
+    ql = make(epsilon=0.0)
+    ql.q[("s", 3)] = 1.0
+    ql.q[("s", 1)] = 0.5
+    assert all(ql.chooseAction("s") == 3 for _ in range(100))
+    assert ql.greedy_action("s") == 3
+    action, q = ql.chooseAction("s", return_q=True)
+    assert action == 3 and q == [0.0, 0.5, 0.0, 1.0, 0.0]
+
+
+def test_epsilon_one_explores_with_nonzero_q():
+    ql = make(epsilon=1.0)
+    for a, v in zip(ACTIONS, [1.0, 0.5, 0.0, -0.5, -1.0]):
+        ql.q[("s", a)] = v
+    chosen = [ql.chooseAction("s") for _ in range(1000)]
+    assert len(set(chosen)) >= 2
+    assert max(set(chosen), key=chosen.count) == 0
+    assert ql.greedy_action("s") == 0
+
+
+def test_all_zero_q_ties_broken_among_all_actions():
+    ql = make(epsilon=1.0)
+    chosen = {ql.chooseAction("s") for _ in range(500)}
+    assert chosen == set(ACTIONS)
+    greedy = make(epsilon=0.0)
+    assert {greedy.greedy_action("s") for _ in range(500)} == set(ACTIONS)
+
+
+def test_same_seed_same_sequence_different_seed_differs():
+    def seq(seed):
+        ql = make(epsilon=0.5, seed=seed)
+        ql.q[("s", 1)] = 1.0
+        return [ql.chooseAction(st) for _ in range(100) for st in ("s", "t")]
+
+    assert seq(7) == seq(7)
+    assert seq(7) != seq(8)
+
+
+def test_save_load_round_trip(tmp_path):
+    ql = QLearn(ACTIONS, epsilon=0.3, alpha=0.2, gamma=0.8, seed=42)
+    states = ["0_1", "1_1", "2_0", "-1_3"]
+    for i in range(200):
+        s1, s2 = states[i % 4], states[(i + 1) % 4]
+        ql.learn(s1, ql.chooseAction(s1), (i % 7) / 3.0 - 1.0, s2, terminal=i % 13 == 0)
+    path = tmp_path / "qtable.json"
+    ql.save(path)
+    json.loads(path.read_text())  # plain JSON
+    loaded = QLearn.load(path)
+    assert loaded.q == ql.q
+    assert (loaded.actions, loaded.epsilon, loaded.alpha, loaded.gamma) == \
+        (ql.actions, ql.epsilon, ql.alpha, ql.gamma)
+    assert [loaded.chooseAction(states[i % 4]) for i in range(100)] == \
+        [ql.chooseAction(states[i % 4]) for i in range(100)]
+
+
+def test_to_dict_sorted_and_from_dict_round_trip():
+    ql = make()
+    ql.q[("b", 1)] = 1.0
+    ql.q[("a", 2)] = 2.0
+    ql.q[("a", 0)] = 3.0
+    d = ql.to_dict()
+    assert d["format"] == "robot_rl.qlearn/1"
+    assert d["q"] == [["a", 0, 3.0], ["a", 2, 2.0], ["b", 1, 1.0]]
+    assert QLearn.from_dict(json.loads(json.dumps(d))).q == ql.q
+
+
+def test_from_dict_rejects_wrong_format():
+    d = make().to_dict()
+    d["format"] = "something/else"
+    with pytest.raises(ValueError, match="format"):
+        QLearn.from_dict(d)
+    with pytest.raises(ValueError, match="format"):
+        QLearn.from_dict({"q": []})

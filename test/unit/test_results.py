@@ -1,0 +1,102 @@
+"""Unit tests for robot_rl.results (no ROS needed)."""
+import json
+import os
+
+import pytest
+import yaml
+
+from robot_rl.qlearn import QLearn
+from robot_rl.results import EpisodeRecord, RunDirectory
+
+HEADER = "episode,steps,return,epsilon,sim_time,wall_time\n"
+PARAMS = {"alpha": 0.1, "gamma": 0.8, "init_cube_pose": {"y": 0.0}}
+
+
+def record(n):
+    return EpisodeRecord(n, 10 * n, n / 3.0 - 2.0, 0.9 ** n, 1.5 * n, 0.1 * n)
+
+
+def test_create(tmp_path):
+    run = RunDirectory.create(tmp_path, "hopper", PARAMS, run_name="r1")
+    assert run.path == tmp_path / "hopper" / "r1"
+    assert (run.robot, run.name) == ("hopper", "r1")
+    assert yaml.safe_load((run.path / "params.yaml").read_text()) == PARAMS
+    assert (run.path / "episodes.csv").read_text() == HEADER
+    link = tmp_path / "hopper" / "latest"
+    assert link.is_symlink() and os.readlink(link) == "r1"
+    assert RunDirectory.latest(tmp_path, "hopper").path == run.path
+    with pytest.raises(FileExistsError):
+        RunDirectory.create(tmp_path, "hopper", PARAMS, run_name="r1")
+
+
+def test_default_names_unique_and_latest_is_newest(tmp_path):
+    first = RunDirectory.create(tmp_path, "cartpole", PARAMS)
+    second = RunDirectory.create(tmp_path, "cartpole", PARAMS)
+    assert first.name != second.name
+    assert RunDirectory.latest(tmp_path, "cartpole").name == second.name
+    assert not list((tmp_path / "cartpole").glob(".*"))  # no temp files left
+
+
+def test_latest_missing(tmp_path):
+    with pytest.raises(FileNotFoundError, match="no previous run under .*: start without resume"):
+        RunDirectory.latest(tmp_path, "hopper")
+
+
+def test_append_and_read_episodes(tmp_path):
+    run = RunDirectory.create(tmp_path, "hopper", PARAMS)
+    records = [record(n) for n in range(1, 4)]
+    for r in records:
+        run.append_episode(r)
+    assert run.read_episodes() == records
+    assert run.episodes_csv.read_text().splitlines()[0] + "\n" == HEADER
+
+
+def test_torn_last_line_ignored(tmp_path):
+    run = RunDirectory.create(tmp_path, "hopper", PARAMS)
+    run.append_episode(record(1))
+    with open(run.episodes_csv, "a") as f:
+        f.write("2,20,0.5")
+    assert run.read_episodes() == [record(1)]
+
+
+def test_checkpoint_round_trip(tmp_path):
+    run = RunDirectory.create(tmp_path, "hopper", PARAMS)
+    with pytest.raises(FileNotFoundError, match="checkpoint"):
+        run.load_checkpoint()
+    ql = QLearn([0, 1], 0.5, 0.1, 0.9, seed=3)
+    ql.learn("1_2", 0, 1.0, "2_2")
+    run.checkpoint({"episode": 4, "qlearn": ql.to_dict()})
+    state = run.load_checkpoint()
+    assert state["episode"] == 4 and "written_at" in state
+    assert QLearn.from_dict(state["qlearn"]).q == ql.q
+    json.loads((run.path / "qtable.json").read_text())
+
+
+def test_prepare_resume_drops_rows_after_checkpoint(tmp_path):
+    run = RunDirectory.create(tmp_path, "hopper", PARAMS)
+    for n in range(1, 4):
+        run.append_episode(record(n))
+    run.checkpoint({"episode": 3})
+    run.append_episode(record(4))  # logged, then crash before the next checkpoint
+    resumed = RunDirectory.latest(tmp_path, "hopper")
+    assert resumed.prepare_resume()["episode"] == 3
+    assert resumed.read_episodes() == [record(n) for n in range(1, 4)]
+    resumed.append_episode(record(4))  # re-run: no duplicate
+    assert [r.episode for r in resumed.read_episodes()] == [1, 2, 3, 4]
+
+
+@pytest.mark.parametrize("n", [0, 1, 30])
+def test_learning_curve_png(tmp_path, n):
+    run = RunDirectory.create(tmp_path, "hopper", PARAMS)
+    for i in range(1, n + 1):
+        run.append_episode(record(i))
+    run.write_learning_curve()
+    assert (run.path / "learning_curve.png").read_bytes().startswith(b"\x89PNG")
+
+
+def test_summary(tmp_path):
+    run = RunDirectory.create(tmp_path, "hopper", PARAMS)
+    run.write_summary({"episodes": 3, "best_return": 1.5})
+    assert json.loads((run.path / "summary.json").read_text()) == {"episodes": 3, "best_return": 1.5}
+    with pytest.raises(ValueError):
+        run.write_summary({"best_return": float("nan")})

@@ -1,0 +1,143 @@
+#!/usr/bin/env bash
+# The workspace's one entry script. Every command first makes sure the workspace is set up (Debian's
+# ROS 1 packages, a venv from /usr/bin/python3 with the pinned requirements, the catkin build) and
+# does only what is missing, so a second run starts in seconds.
+#
+#   ./ws run [cube]        set up, then the main job (see README)
+#   ./ws test [ARGS...]    set up, then every test (pytest + rostest); ARGS go to pytest
+#   ./ws exec CMD...       run CMD inside the workspace environment
+#   ./ws setup             only the set-up
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+STATE="$ROOT/.ws"          # ignored by git; CATKIN_IGNORE keeps catkin out of it
+VENV="$STATE/venv"
+BUILD="$STATE/build"
+DEVEL="$STATE/devel"
+SYSTEM_PYTHON=/usr/bin/python3
+
+# Debian 12's ROS 1 (ROS is not on PyPI) and the build tools catkin needs.
+APT_PACKAGES=(
+  ros-core rosbash catkin cmake g++ make python3-venv python3-catkin-pkg
+  python3-rospy python3-roslaunch python3-rostest python3-rosunit
+  python3-tf python3-tf2-ros ros-robot-state-publisher
+  ros-message-generation ros-message-runtime python3-genpy
+  python3-std-msgs ros-std-msgs python3-std-srvs ros-std-srvs
+  python3-geometry-msgs ros-geometry-msgs python3-sensor-msgs ros-sensor-msgs
+  python3-nav-msgs ros-nav-msgs python3-rosgraph-msgs ros-rosgraph-msgs
+  python3-tf2-msgs ros-tf2-msgs
+)
+
+log() { echo "[ws] $*" >&2; }
+die() { echo "[ws] error: $*" >&2; exit 1; }
+
+as_root() {
+  if [ "$(id -u)" = 0 ]; then "$@"; elif command -v sudo >/dev/null; then sudo "$@"; else
+    die "installing Debian packages needs root (or sudo): $*"; fi
+}
+
+ensure_apt_packages() {
+  local missing=() pkg
+  local installed
+  installed="$(dpkg-query -W -f='${Package} ${db:Status-Abbrev}\n' "${APT_PACKAGES[@]}" 2>/dev/null || true)"
+  for pkg in "${APT_PACKAGES[@]}"; do
+    grep -q "^$pkg ii" <<<"$installed" || missing+=("$pkg")
+  done
+  [ ${#missing[@]} -eq 0 ] && return
+  log "installing Debian packages: ${missing[*]}"
+  as_root apt-get update -qq
+  as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+}
+
+ensure_venv() {
+  if [ ! -x "$VENV/bin/python" ]; then
+    log "creating the venv (from $SYSTEM_PYTHON, with Debian's site-packages for rospy)"
+    "$SYSTEM_PYTHON" -m venv --system-site-packages "$VENV"
+  fi
+  local stamp="$VENV/.requirements.sha256" wanted
+  wanted="$(sha256sum "$ROOT/requirements.txt" | cut -d' ' -f1)"
+  if [ "$(cat "$stamp" 2>/dev/null)" != "$wanted" ]; then
+    log "installing requirements.txt into the venv"
+    "$VENV/bin/pip" install --disable-pip-version-check -q -r "$ROOT/requirements.txt"
+    echo "$wanted" >"$stamp"
+  fi
+}
+
+ensure_catkin_build() {
+  mkdir -p "$STATE"
+  touch "$STATE/CATKIN_IGNORE"
+  # The repository root is the catkin source space; catkin_make would create this same symlink.
+  [ -e "$ROOT/CMakeLists.txt" ] || ln -s /usr/share/catkin/cmake/toplevel.cmake "$ROOT/CMakeLists.txt"
+  # Re-configure when the set of packages changes (catkin finds packages at configure time).
+  local packages stamp="$BUILD/.packages.sha256"
+  packages="$(cd "$ROOT" && find . -name package.xml -not -path './.ws/*' | sort | xargs sha256sum | sha256sum | cut -d' ' -f1)"
+  if [ ! -f "$BUILD/Makefile" ] || [ "$(cat "$stamp" 2>/dev/null)" != "$packages" ]; then
+    log "configuring the catkin build"
+    mkdir -p "$BUILD"
+    cmake -S "$ROOT" -B "$BUILD" -DCATKIN_DEVEL_PREFIX="$DEVEL" -DPYTHON_EXECUTABLE="$SYSTEM_PYTHON" \
+      -DCATKIN_ENABLE_TESTING=OFF -DCMAKE_BUILD_TYPE=Release >"$BUILD/configure.log" 2>&1 \
+      || { cat "$BUILD/configure.log" >&2; die "catkin configure failed (log above)"; }
+    echo "$packages" >"$stamp"
+  fi
+  make -C "$BUILD" -j"$(nproc)" >"$BUILD/make.log" 2>&1 || { cat "$BUILD/make.log" >&2; die "catkin build failed (log above)"; }
+}
+
+setup() {
+  ensure_apt_packages
+  ensure_venv
+  ensure_catkin_build
+}
+
+# The environment every command runs in: devel space + venv; ROS on loopback unless the caller chose.
+enter_environment() {
+  set +u
+  # shellcheck disable=SC1091
+  source "$DEVEL/setup.bash"
+  set -u
+  export VIRTUAL_ENV="$VENV"
+  export PATH="$VENV/bin:$PATH"
+  export ROS_MASTER_URI="${ROS_MASTER_URI:-http://127.0.0.1:11311}"
+  export ROS_HOSTNAME="${ROS_HOSTNAME:-127.0.0.1}"
+  export PYTHONDONTWRITEBYTECODE=1
+}
+
+free_port() {
+  "$SYSTEM_PYTHON" -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'
+}
+
+# A private master for commands that start their own (run, test), unless the caller chose one.
+private_master() {
+  if [ -z "${ROS_MASTER_URI:-}" ]; then
+    export ROS_MASTER_URI="http://127.0.0.1:$(free_port)"
+  fi
+}
+
+command="${1:-}"
+[ $# -gt 0 ] && shift
+case "$command" in
+  setup)
+    setup ;;
+  run)
+    setup
+    private_master
+    enter_environment
+    robot="${1:-cube}"
+    case "$robot" in
+      cube) exec roslaunch "$ROOT/launch/cube_demo.launch" ;;
+      *) die "unknown robot '$robot' (known: cube)" ;;
+    esac ;;
+  test)
+    setup
+    private_master
+    enter_environment
+    cd "$ROOT"
+    exec python -m pytest -p no:cacheprovider "$@" test ;;
+  exec)
+    [ $# -gt 0 ] || die "usage: ./ws exec CMD [ARGS...]"
+    setup
+    enter_environment
+    exec "$@" ;;
+  *)
+    sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//' >&2
+    exit 2 ;;
+esac
