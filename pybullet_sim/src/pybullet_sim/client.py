@@ -71,6 +71,16 @@ class SensorSubscriber(Generic[Reading]):
             self._count += 1
             self._condition.notify_all()
 
+    def wait_for_connection(self, timeout: float) -> None:
+        """Block until a publisher of the topic is connected (messages sent before that are lost)."""
+        end = time.monotonic() + timeout
+        while self._subscriber.get_num_connections() == 0:
+            if rospy.is_shutdown():
+                raise SimConnectionError(f"shutdown while waiting for a publisher on {self.topic}")
+            if time.monotonic() > end:
+                raise SimConnectionError(f"no publisher of {self.topic} connected within {timeout} s; {HINT}")
+            time.sleep(0.01)
+
     @property
     def count(self) -> int:
         """How many messages have arrived; take it before a call, then wait_newer(count)."""

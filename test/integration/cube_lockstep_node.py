@@ -1,0 +1,121 @@
+#!/usr/bin/env python3
+"""rostest node: the lockstep step service, Gazebo's resets, and the command ordering guarantee."""
+import math
+import unittest
+
+import rospy
+import rostest
+from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+
+from pybullet_sim import messages
+from pybullet_sim.client import CommandPublisher, SensorSubscriber, SimConnection, SimConnectionError
+
+WHEEL_COMMAND = "/moving_cube/inertia_wheel_roll_joint_velocity_controller/command"
+TIMEOUT = 5.0
+EFFORT_LIMIT = 200.0  # URDF effort limit of inertia_wheel_roll_joint
+P_GAIN = 1.0          # config/moving_cube_sim.yaml
+
+
+class CubeLockstepTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node("cube_lockstep_test")
+        cls.sim = SimConnection(timeout=TIMEOUT)
+        cls.wheel = CommandPublisher(WHEEL_COMMAND)
+        cls.wheel.wait_for_subscriber(TIMEOUT)
+        cls.joints = SensorSubscriber("/moving_cube/joint_states", JointState, messages.joint_state_reading)
+        cls.odom = SensorSubscriber("/moving_cube/odom", Odometry, messages.odometry_reading)
+        cls.clock = SensorSubscriber("/clock", Clock, lambda msg: msg.clock)
+        for subscriber in (cls.joints, cls.odom, cls.clock):
+            subscriber.wait_for_connection(TIMEOUT)
+
+    def setUp(self):
+        self.sim.pause()
+        mark = self.odom.count
+        self.sim.reset_simulation()
+        self.odom.wait_newer(mark, TIMEOUT)
+
+    def step(self, steps=1):
+        """One lockstep step: returns the joint and odom readings stamped at the new time."""
+        joints_mark, odom_mark = self.joints.count, self.odom.count
+        stamp = self.sim.step(steps, [self.wheel])
+        return (stamp, self.joints.wait_newer(joints_mark, TIMEOUT, stamp),
+                self.odom.wait_newer(odom_mark, TIMEOUT, stamp))
+
+    def test_step_is_refused_while_running(self):
+        self.sim.unpause()
+        try:
+            with self.assertRaisesRegex(SimConnectionError, "running.*pause_physics"):
+                self.sim.step(1)
+        finally:
+            self.sim.pause()
+
+    def test_step_of_zero_is_refused(self):
+        with self.assertRaisesRegex(SimConnectionError, "steps must be >= 1"):
+            self.sim.step(0)
+
+    def test_step_advances_exactly_n_physics_steps(self):
+        stamp, joints, odom = self.step(40)
+        self.assertEqual(stamp, rospy.Time(0, 40_000_000))
+        self.assertEqual(joints.stamp, 0.04)
+        stamp, _, _ = self.step(7)
+        self.assertEqual(stamp, rospy.Time(0, 47_000_000))
+
+    def test_each_step_applies_the_command_published_before_it(self):
+        """1000 publish-then-step cycles: the effort of each step is the PID of that step's command.
+
+        With p = 1 and one physics step per call, the velocity controller's effort is
+        clamp(command - velocity before the step), so the effort in joint_states proves which command
+        the step used."""
+        mark = self.joints.count
+        self.sim.reset_world()
+        velocity = self.joints.wait_newer(mark, TIMEOUT).velocity[0]
+        for k in range(1000):
+            command = (60.0 if k % 2 == 0 else -60.0) + (k % 7)
+            self.wheel.publish(command)
+            _, joints, _ = self.step(1)
+            expected = max(-EFFORT_LIMIT, min(EFFORT_LIMIT, P_GAIN * (command - velocity)))
+            self.assertEqual(joints.effort[0], expected, f"cycle {k}: command {command} was not applied")
+            velocity = joints.velocity[0]
+
+    def test_reset_simulation_brings_time_and_pose_back(self):
+        _, _, moved = self.roll_the_cube()
+        odom_mark, clock_mark = self.odom.count, self.clock.count
+        self.sim.reset_simulation()
+        odom = self.odom.wait_newer(odom_mark, TIMEOUT)
+        self.assertEqual(odom.stamp, 0.0)
+        self.assertEqual(self.clock.wait_newer(clock_mark, TIMEOUT), rospy.Time(0))
+        self.assert_at_spawn(odom)
+
+    def test_reset_world_brings_pose_back_while_time_keeps_going(self):
+        stamp, _, moved = self.roll_the_cube()
+        odom_mark, joints_mark = self.odom.count, self.joints.count
+        self.sim.reset_world()
+        odom = self.odom.wait_newer(odom_mark, TIMEOUT)
+        joints = self.joints.wait_newer(joints_mark, TIMEOUT)
+        self.assertEqual(odom.stamp, stamp.to_sec())
+        self.assert_at_spawn(odom)
+        self.assertEqual(joints.velocity[0], 0.0)
+        next_stamp, _, _ = self.step(1)
+        self.assertEqual(next_stamp, stamp + rospy.Duration(0, 1_000_000))
+
+    def roll_the_cube(self):
+        """Let the cube land, then spin the wheel up: the reaction rolls the cube along y."""
+        self.step(300)
+        self.wheel.publish(100.0)
+        stamp, joints, odom = self.step(300)
+        self.assertGreater(abs(odom.position[1]), 0.05, "spinning the wheel up should roll the cube along y")
+        return stamp, joints, odom
+
+    def assert_at_spawn(self, odom):
+        noise = 0.05  # five sigma of the p3d noise
+        for actual, spawn in zip(odom.position, (0.0, 0.0, 0.11)):
+            self.assertAlmostEqual(actual, spawn, delta=noise)
+        self.assertAlmostEqual(abs(odom.orientation[3]), 1.0, delta=noise)
+        self.assertTrue(all(math.isfinite(v) for v in odom.linear_velocity))
+
+
+if __name__ == "__main__":
+    rostest.rosrun("workspace_tests", "cube_lockstep", CubeLockstepTest)
