@@ -123,7 +123,7 @@ case "$command" in
     enter_environment
     robot="${1:-cube}"
     case "$robot" in
-      cube) exec roslaunch "$ROOT/launch/systems_test.launch" ;;
+      cube) exec roslaunch "$ROOT/launch/main.launch" ;;
       *) die "unknown robot '$robot' (known: cube)" ;;
     esac ;;
   test)

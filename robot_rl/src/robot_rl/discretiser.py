@@ -14,7 +14,8 @@ FORMAT = "robot_rl.discretiser/1"
 
 
 class Discretiser:
-    """Per-dimension edges numpy.linspace(low[i], high[i], bins[i]); indices run 0..bins[i]."""
+    """Per-dimension edges numpy.linspace(low[i], high[i], bins[i]) (or explicit, see from_edges);
+    indices run 0..bins[i]."""
 
     def __init__(self, low: Sequence[float], high: Sequence[float], bins: int | Sequence[int],
                  indices: Sequence[int] | None = None) -> None:
@@ -39,6 +40,17 @@ class Discretiser:
         if self.indices is not None and min(self.indices) < 0:
             raise ValueError(f"indices must be >= 0, got {self.indices}")
         self.edges = [np.linspace(lo, hi, b) for lo, hi, b in zip(self.low, self.high, self.bins)]
+
+    @classmethod
+    def from_edges(cls, edges: Sequence[Sequence[float]], indices: Sequence[int] | None = None) -> Discretiser:
+        """Explicit, increasing bin edges per dimension (e.g. a dead band around 0)."""
+        edges = [np.asarray(e, dtype=float) for e in edges]
+        for i, e in enumerate(edges):
+            if e.ndim != 1 or e.size < 2 or not np.all(np.diff(e) > 0):
+                raise ValueError(f"dimension {i}: edges must be at least 2 increasing numbers, got {e.tolist()}")
+        discretiser = cls([e[0] for e in edges], [e[-1] for e in edges], [e.size for e in edges], indices)
+        discretiser.edges = edges
+        return discretiser
 
     def _select(self, obs: Any) -> np.ndarray:
         arr = np.asarray(obs, dtype=float)
@@ -71,12 +83,11 @@ class Discretiser:
         return math.prod(b + 1 for b in self.bins)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"format": FORMAT, "low": self.low, "high": self.high, "bins": self.bins,
-                "indices": self.indices}
+        return {"format": FORMAT, "edges": [e.tolist() for e in self.edges], "indices": self.indices}
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Discretiser:
         fmt = d.get("format") if isinstance(d, dict) else None
         if fmt != FORMAT:
             raise ValueError(f"not a Discretiser: format is {fmt!r}, expected {FORMAT!r}")
-        return cls(d["low"], d["high"], d["bins"], d["indices"])
+        return cls.from_edges(d["edges"], d["indices"])
