@@ -3,7 +3,7 @@
 # ROS 1 packages, a venv from /usr/bin/python3 with the pinned requirements, the catkin build) and
 # does only what is missing, so a second run starts in seconds.
 #
-#   ./ws run [cube]        set up, then the main job (see README)
+#   ./ws run [cube|hopper] set up, then train the cube (default) or the hopper (see README)
 #   ./ws test [ARGS...]    set up, then every test (pytest + rostest); ARGS go to pytest
 #   ./ws exec CMD...       run CMD inside the workspace environment
 #   ./ws setup             only the set-up
@@ -124,7 +124,8 @@ case "$command" in
     robot="${1:-cube}"
     case "$robot" in
       cube) exec roslaunch "$ROOT/launch/main.launch" ;;
-      *) die "unknown robot '$robot' (known: cube)" ;;
+      hopper) exec roslaunch "$ROOT/launch/hopper.launch" ;;
+      *) die "unknown robot '$robot' (known: cube, hopper)" ;;
     esac ;;
   test)
     setup

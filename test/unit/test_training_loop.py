@@ -1,0 +1,161 @@
+"""The Q-learning loop on the cube env with the in-process (direct) backend: results files,
+epsilon schedule, resume after a crash, determinism. No ROS master."""
+import csv
+import json
+
+import gymnasium
+import pytest
+import yaml
+
+import moving_cube_training
+from moving_cube_training.params import load_default_params
+from moving_cube_training.state import CubeStateKey
+from robot_rl.results import EpisodeRecord, RunDirectory
+from robot_rl.training import QLearningTrainer, make_trainer_config
+
+HEADER = ["episode", "steps", "return", "epsilon", "sim_time", "wall_time"]
+
+
+def cube_params(**overrides):
+    params = load_default_params()
+    params.update(nepisodes=3, nsteps=20)
+    params.update(overrides)
+    return params
+
+
+def make_trainer(run, params, checkpoint_every=10, resume=False, log=None):
+    env = gymnasium.make(moving_cube_training.ENV_ID, backend="direct", params=params, seed=params["seed"])
+    lines = [] if log is None else log
+    trainer = QLearningTrainer(env, CubeStateKey(params), make_trainer_config(params, checkpoint_every), run,
+                               log=lines.append, resume=resume)
+    return trainer, env
+
+
+def train(run, params, **kwargs):
+    trainer, env = make_trainer(run, params, **kwargs)
+    try:
+        return trainer, trainer.train()
+    finally:
+        env.close()
+
+
+def csv_rows(run):
+    with open(run.episodes_csv, newline="") as f:
+        return list(csv.reader(f))
+
+
+def test_three_episodes_write_every_results_file(tmp_path):
+    params = cube_params()
+    run = RunDirectory.create(tmp_path, "moving_cube", params)
+    log = []
+    _, summary = train(run, params, log=log)
+
+    rows = csv_rows(run)
+    assert rows[0] == HEADER
+    assert [int(r[0]) for r in rows[1:]] == [1, 2, 3]
+    assert all(1 <= int(r[1]) <= params["nsteps"] for r in rows[1:])
+    assert yaml.safe_load(run.params_yaml.read_text()) == params
+    checkpoint = json.loads(run.qtable_json.read_text())
+    assert checkpoint["episode"] == 3
+    assert checkpoint["qlearn"]["q"], "the Q-table learned something"
+    assert run.learning_curve_png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    on_disk = json.loads(run.summary_json.read_text())
+    assert on_disk == summary
+    assert on_disk["completed"] is True and on_disk["episodes"] == 3
+    assert on_disk["env_steps"] == sum(int(r[1]) for r in rows[1:])
+    latest = tmp_path / "moving_cube" / "latest"
+    assert latest.is_symlink() and latest.resolve() == run.path.resolve()
+    assert RunDirectory.latest(tmp_path, "moving_cube").path == run.path
+    assert [line.split(" - ")[0] for line in log if line.startswith("EP: ")] == ["EP: 1", "EP: 2", "EP: 3"]
+
+
+def expected_epsilons(epsilon, discount, n):
+    out = []
+    for _ in range(n):
+        if epsilon > 0.05:
+            epsilon *= discount
+        out.append(epsilon)
+    return out
+
+
+@pytest.mark.parametrize("epsilon, discount", [(0.9, 0.999), (0.3, 0.5)])
+def test_epsilon_decays_before_each_episode_while_above_0_05(tmp_path, epsilon, discount):
+    params = cube_params(epsilon=epsilon, epsilon_discount=discount, nepisodes=6, nsteps=3)
+    run = RunDirectory.create(tmp_path, "moving_cube", params)
+    trainer, _ = train(run, params)
+    logged = [r.epsilon for r in run.read_episodes()]
+    assert logged == pytest.approx(expected_epsilons(epsilon, discount, 6), rel=1e-12)
+    assert trainer.qlearn.epsilon == pytest.approx(logged[-1], rel=1e-12)
+    if discount == 0.5:  # 0.15, 0.075, 0.0375, then it stays: the decay stops once at or below 0.05
+        assert logged[3:] == pytest.approx([0.0375] * 3)
+
+
+def test_resume_after_a_crash_between_checkpoints(tmp_path):
+    params = cube_params(nepisodes=5, nsteps=20)
+    run = RunDirectory.create(tmp_path, "moving_cube", params, run_name="run")
+    train(run, params, checkpoint_every=5)
+    checkpoint = json.loads(run.qtable_json.read_text())
+    assert checkpoint["episode"] == 5
+    checkpointed_csv = run.episodes_csv.read_bytes()
+    # The crash: episodes 6 and 7 were logged after the checkpoint, the 8th row was torn mid-write.
+    for episode in (6, 7):
+        run.append_episode(EpisodeRecord(episode, 999, 123456.0, 0.01, 1e6, 1e6))
+    with open(run.episodes_csv, "a") as f:
+        f.write("8,12,3.5")
+
+    resumed = dict(params, nepisodes=10)
+    log = []
+    trainer, env = make_trainer(RunDirectory(run.path), resumed, checkpoint_every=5, resume=True, log=log)
+    try:
+        # The Q-table, epsilon and Q-learning RNG come from the checkpoint, not from the params.
+        assert trainer.qlearn.to_dict()["q"] == checkpoint["qlearn"]["q"]
+        assert trainer.qlearn.epsilon == checkpoint["qlearn"]["epsilon"]
+        assert trainer.qlearn.to_dict()["rng_state"] == checkpoint["qlearn"]["rng_state"]
+        assert trainer.state.episode == 5
+        summary = trainer.train()
+    finally:
+        env.close()
+
+    assert any(line.startswith("Resuming") and "after episode 5" in line for line in log), log
+    episode_lines = [line.split(" - ")[0] for line in log if line.startswith("EP: ")]
+    assert episode_lines == [f"EP: {n}" for n in range(6, 11)], "the first resumed episode is 6"
+    records = run.read_episodes()
+    assert [r.episode for r in records] == list(range(1, 11))
+    assert run.episodes_csv.read_bytes().startswith(checkpointed_csv), "checkpointed rows are unchanged"
+    assert all(r.return_ != 123456.0 and r.steps <= 20 for r in records), "rows logged after the checkpoint are re-run"
+    assert run.episodes_csv.read_text().endswith("\n")
+    assert records[5].epsilon == pytest.approx(checkpoint["qlearn"]["epsilon"] * params["epsilon_discount"], rel=1e-12)
+    assert records[5].sim_time > records[4].sim_time, "sim time carries on from the checkpoint"
+    final = json.loads(run.qtable_json.read_text())
+    assert final["episode"] == 10
+    old_keys = {(s, a) for s, a, _ in checkpoint["qlearn"]["q"]}
+    assert old_keys <= {(s, a) for s, a, _ in final["qlearn"]["q"]}
+    assert summary["completed"] is True and summary["episodes"] == 10
+    assert summary["env_steps"] == sum(r.steps for r in records)
+
+
+def test_resume_without_a_checkpoint_fails_clearly(tmp_path):
+    params = cube_params()
+    run = RunDirectory.create(tmp_path, "moving_cube", params)
+    with pytest.raises(FileNotFoundError, match="qtable.json"):
+        make_trainer(run, params, resume=True)
+
+
+def test_same_seed_same_returns(tmp_path):
+    params = cube_params(nepisodes=4, nsteps=30)
+    returns = []
+    for name in ("a", "b"):
+        run = RunDirectory.create(tmp_path, "moving_cube", params, run_name=name)
+        train(run, params)
+        returns.append([(r.steps, r.return_) for r in run.read_episodes()])
+        q = json.loads(run.qtable_json.read_text())["qlearn"]["q"]
+        returns[-1].append(q)
+    assert returns[0] == returns[1]
+    assert len(returns[0]) == 5
+    a, b = (RunDirectory(tmp_path / "moving_cube" / n) for n in "ab")
+    assert [r[:5] for r in csv_rows(a)] == [r[:5] for r in csv_rows(b)], "all but wall_time is identical"
+
+    other = dict(params, seed=1)
+    run = RunDirectory.create(tmp_path, "moving_cube", other, run_name="other_seed")
+    train(run, other)
+    assert [(r.steps, r.return_) for r in run.read_episodes()] != returns[0][:4], "the seed matters"
