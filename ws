@@ -5,6 +5,7 @@
 #
 #   ./ws run [cube|hopper] set up, then train the cube (default) or the hopper (see README)
 #   ./ws test [ARGS...]    set up, then every test (pytest + rostest); ARGS go to pytest
+#   ./ws bench [--reps N]  set up, then the speed benchmark (table + bench_results.json)
 #   ./ws exec CMD...       run CMD inside the workspace environment
 #   ./ws setup             only the set-up
 set -euo pipefail
@@ -123,8 +124,8 @@ case "$command" in
     enter_environment
     robot="${1:-cube}"
     case "$robot" in
-      cube) exec roslaunch "$ROOT/launch/main.launch" ;;
-      hopper) exec roslaunch "$ROOT/launch/hopper.launch" ;;
+      cube) exec rosrun robot_rl roslaunch_checked.py "$ROOT/launch/main.launch" ;;
+      hopper) exec rosrun robot_rl roslaunch_checked.py "$ROOT/launch/hopper.launch" ;;
       *) die "unknown robot '$robot' (known: cube, hopper)" ;;
     esac ;;
   test)
@@ -133,12 +134,18 @@ case "$command" in
     enter_environment
     cd "$ROOT"
     exec python -m pytest -p no:cacheprovider "$@" test ;;
+  bench)
+    setup
+    private_master
+    enter_environment
+    cd "$ROOT"
+    exec rosrun robot_rl bench.py "$@" ;;
   exec)
     [ $# -gt 0 ] || die "usage: ./ws exec CMD [ARGS...]"
     setup
     enter_environment
     exec "$@" ;;
   *)
-    sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//' >&2
+    sed -n '2,10p' "$0" | sed 's/^# \{0,1\}//' >&2
     exit 2 ;;
 esac

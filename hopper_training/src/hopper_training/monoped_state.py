@@ -40,6 +40,7 @@ class MonopedState:
         self.weights = (weight_r1, weight_r2, weight_r3, weight_r4, weight_r5)
         self.desired_world_point = (0.0, 0.0, 0.0)
         self.readings: Optional[Readings] = None
+        self._base_rpy = (0.0, 0.0, 0.0)
         # The tutorial's bins: numpy.linspace(min, max, discrete_division) per observation.
         self.discretiser = Discretiser(
             low=[-(max_height - min_height), -abs_max_roll, -abs_max_pitch, -2 * math.pi, 0.0, -1.6, -1.6, -1.6],
@@ -57,6 +58,7 @@ class MonopedState:
 
     def update(self, readings: Readings) -> None:
         self.readings = readings
+        self._base_rpy = euler_from_quaternion(readings.sensors[IMU_SENSOR].orientation)
 
     def set_desired_world_point(self, x: float, y: float, z: float) -> None:
         self.desired_world_point = (x, y, z)
@@ -69,15 +71,15 @@ class MonopedState:
         return self.get_base_position()[2]
 
     def get_base_rpy(self) -> Tuple[float, float, float]:
-        return euler_from_quaternion(self.readings.sensors[IMU_SENSOR].orientation)
+        return self._base_rpy
 
     def get_distance_from_point(self, point: Sequence[float]) -> float:
-        return float(np.linalg.norm(np.subtract(self.get_base_position(), point)))
+        return math.dist(self.get_base_position(), point)
 
     def get_contact_force_magnitude(self) -> float:
         """|total_wrench.force| of the foot's contact; 0 in the air."""
         contact = self.readings.sensors[CONTACT_SENSOR]
-        return float(np.linalg.norm(contact.total_force)) if contact.contacts else 0.0
+        return math.hypot(*contact.total_force) if contact.contacts else 0.0
 
     def get_joint_positions(self) -> List[float]:
         joints = self.readings.joints

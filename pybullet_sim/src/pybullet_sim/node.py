@@ -7,7 +7,8 @@ sensor at its own rate of sim time, and paused, where time only moves through th
 ~step (pybullet_sim/Step), which publishes every sensor once per call.
 
 Private params: ~time_step (0.001 s), ~real_time_factor (1.0), ~paused (false), ~gui (false), ~seed (0),
-~command_timeout (2.0 s: how long ~step waits for the commands its caller announced), plus the robot's
+~command_timeout (2.0 s: how long ~step waits for the commands its caller announced),
+~pub_clock_frequency (100 Hz of wall time at most for /clock, gazebo_ros's default), plus the robot's
 controllers and sensors (see config/moving_cube_sim.yaml). The URDF comes from `robot_description`.
 """
 from __future__ import annotations
@@ -30,11 +31,10 @@ from std_srvs.srv import Empty, EmptyResponse
 from pybullet_sim.msg import ContactsState
 from pybullet_sim.srv import Step, StepResponse
 from . import messages
+from .client import STEP_SERVICE, synchronous_publisher
 from .config import ConfigError, SensorConfig, parse_robot_config
 from .world import UrdfError, World
 
-CLOCK_RATE = 1000.0  # Hz of sim time at which /clock is published while running
-STEP_SERVICE = "/pybullet_sim/step"
 _SENSOR_MESSAGES = {"p3d": (Odometry, messages.odometry_msg), "imu": (Imu, messages.imu_msg),
                     "contact": (ContactsState, messages.contacts_msg)}
 
@@ -77,6 +77,7 @@ class SimNode:
         self.real_time_factor = _param(params, "real_time_factor", float, 1.0, minimum=0.0)
         self._paused = _param(params, "paused", bool, False)
         self.command_timeout = _param(params, "command_timeout", float, 2.0, minimum=0.0)
+        self.pub_clock_period = 1.0 / _param(params, "pub_clock_frequency", float, 100.0, minimum=1e-3)
         seed = _param(params, "seed", int, 0)
         gui = _param(params, "gui", bool, False)
         description_param = rospy.resolve_name("robot_description")
@@ -91,19 +92,24 @@ class SimNode:
                            urdf_source=f"parameter {description_param}")
         self._step_ns = round(self.time_step * 1e9)
 
-        # One condition guards the World; threads other than the main loop announce themselves in
-        # _waiters so that the free-running loop steps aside for them (Python locks are not fair).
-        self._lock = threading.Condition()
+        # One lock guards the World, with two conditions on it: `_run_state` wakes the main loop on
+        # unpause, `_commands_arrived` wakes a step call waiting for its announced commands. Threads
+        # other than the main loop announce themselves in _waiters so that the free-running loop steps
+        # aside for them (Python locks are not fair).
+        self._lock = threading.Lock()
+        self._run_state = threading.Condition(self._lock)
+        self._commands_arrived = threading.Condition(self._lock)
         self._waiters = 0
         self._received: Dict[Tuple[str, str], int] = {}
         self._last_bad_command_warning = -math.inf
 
-        self._clock_pub = rospy.Publisher("/clock", Clock, queue_size=10)
-        self._joint_pub = rospy.Publisher(self.config.joint_states_topic, JointState, queue_size=10)
-        self._sensor_pubs = [(sensor, rospy.Publisher(sensor.topic, _SENSOR_MESSAGES[sensor.type][0], queue_size=10),
+        # Synchronous publishers: in lockstep each message is awaited at once (see synchronous_publisher).
+        self._clock_pub = synchronous_publisher("/clock", Clock)
+        self._joint_pub = synchronous_publisher(self.config.joint_states_topic, JointState)
+        self._sensor_pubs = [(sensor, synchronous_publisher(sensor.topic, _SENSOR_MESSAGES[sensor.type][0]),
                               _SENSOR_MESSAGES[sensor.type][1]) for sensor in self.config.sensors]
         self._tf = tf2_ros.TransformBroadcaster()
-        self._clock_schedule = _Schedule(CLOCK_RATE, self.time_step)
+        self._last_clock_wall = -math.inf
         self._joint_schedule = _Schedule(self.config.joint_state_rate, self.time_step)
         self._sensor_schedules = [_Schedule(sensor.update_rate, self.time_step) for sensor in self.config.sensors]
 
@@ -111,14 +117,14 @@ class SimNode:
         for controller in self.config.controllers:
             topic = rospy.resolve_name(self.config.command_topic(controller))
             self._command_topics[topic] = controller.name
-            rospy.Subscriber(topic, Float64, self._on_command, callback_args=topic)
+            rospy.Subscriber(topic, Float64, self._on_command, callback_args=topic, tcp_nodelay=True)
         rospy.Service("/gazebo/pause_physics", Empty, self._handle_pause)
         rospy.Service("/gazebo/unpause_physics", Empty, self._handle_unpause)
         rospy.Service("/gazebo/reset_simulation", Empty, self._handle_reset_simulation)
         rospy.Service("/gazebo/reset_world", Empty, self._handle_reset_world)
         rospy.Service(STEP_SERVICE, Step, self._handle_step)
         with self._lock:
-            self._publish_all()
+            self._publish_all(force_clock=True)
         rospy.loginfo("pybullet_sim: %s loaded, time step %.4f s, %s, real_time_factor %.2f",
                       self.world.robot_name, self.time_step, "paused" if self._paused else "running",
                       self.real_time_factor)
@@ -147,10 +153,17 @@ class SimNode:
             position, orientation = self.world.link_pose(sensor.link)
             self._tf.sendTransform(messages.transform_msg(sensor.frame_id, sensor.link, position, orientation, stamp))
 
-    def _publish_all(self):
-        """Publish /clock and every sensor once, stamped now (after a lockstep step or a reset)."""
+    def _publish_clock(self, stamp, force: bool = False):
+        """/clock at most ~pub_clock_frequency times per wall second, as gazebo_ros throttles it."""
+        now = time.monotonic()
+        if force or now - self._last_clock_wall >= self.pub_clock_period:
+            self._last_clock_wall = now
+            self._clock_pub.publish(Clock(clock=stamp))
+
+    def _publish_all(self, force_clock: bool = False):
+        """Publish every sensor once stamped now (after a lockstep step or a reset), and /clock if due."""
         stamp = self._stamp()
-        self._clock_pub.publish(Clock(clock=stamp))
+        self._publish_clock(stamp, force_clock)
         self._publish_joint_states(stamp)
         for sensor, publisher, to_msg in self._sensor_pubs:
             self._publish_sensor(sensor, publisher, to_msg, stamp)
@@ -158,21 +171,17 @@ class SimNode:
     def _publish_due(self):
         """While running: publish what is due at the current step, each stream at its own rate."""
         count = self.world.step_count
-        stamp = None
-        if self._clock_schedule.due(count):
-            stamp = self._stamp()
-            self._clock_pub.publish(Clock(clock=stamp))
+        stamp = self._stamp()
+        self._publish_clock(stamp)
         if self._joint_schedule.due(count):
-            stamp = stamp or self._stamp()
             self._publish_joint_states(stamp)
         for (sensor, publisher, to_msg), schedule in zip(self._sensor_pubs, self._sensor_schedules):
             if schedule.due(count):
-                stamp = stamp or self._stamp()
                 self._publish_sensor(sensor, publisher, to_msg, stamp)
 
     def _restart_schedules(self):
         count = self.world.step_count
-        for schedule in (self._clock_schedule, self._joint_schedule, *self._sensor_schedules):
+        for schedule in (self._joint_schedule, *self._sensor_schedules):
             schedule.restart(count)
 
     # -- callbacks ------------------------------------------------------------------------------
@@ -188,7 +197,7 @@ class SimNode:
                                   self.world.command(self._command_topics[topic]))
             key = (topic, caller)
             self._received[key] = self._received.get(key, 0) + 1
-            self._lock.notify_all()
+            self._commands_arrived.notify_all()
 
     def _handle_pause(self, _request):
         with self._exclusive():
@@ -198,20 +207,20 @@ class SimNode:
     def _handle_unpause(self, _request):
         with self._exclusive():
             self._paused = False
-            self._lock.notify_all()
+            self._run_state.notify_all()
         return EmptyResponse()
 
     def _handle_reset_simulation(self, _request):
         with self._exclusive():
             self.world.reset_simulation()
             self._restart_schedules()
-            self._publish_all()
+            self._publish_all(force_clock=True)
         return EmptyResponse()
 
     def _handle_reset_world(self, _request):
         with self._exclusive():
             self.world.reset_world()
-            self._publish_all()
+            self._publish_all(force_clock=True)
         return EmptyResponse()
 
     def _handle_step(self, request):
@@ -229,7 +238,7 @@ class SimNode:
             if not self._paused:
                 raise rospy.ServiceException(f"{STEP_SERVICE} refused: the simulation is running; call "
                                              f"/gazebo/pause_physics first (lockstep steps a paused simulation)")
-            arrived = self._lock.wait_for(
+            arrived = self._commands_arrived.wait_for(
                 lambda: all(self._received.get((t, caller), 0) >= n for t, n in announced), self.command_timeout)
             if not arrived:
                 missing = [f"{t} (announced {n}, received {self._received.get((t, caller), 0)})"
@@ -253,7 +262,7 @@ class SimNode:
             with self._lock:
                 if self._paused:
                     origin = None
-                    self._lock.wait(0.1)
+                    self._run_state.wait(0.5)  # bounded so that shutdown is noticed
                     continue
                 if origin is None:
                     origin = (time.monotonic(), self.world.time)

@@ -66,6 +66,10 @@ def _transpose_rotate(quaternion: Sequence[float], vector: Sequence[float]) -> T
     return (m[0] * x + m[3] * y + m[6] * z, m[1] * x + m[4] * y + m[7] * z, m[2] * x + m[5] * y + m[8] * z)
 
 
+def _cross(a: Sequence[float], b: Sequence[float]) -> Tuple[float, float, float]:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
 class _EffortPid:
     """One ros_control effort PID (control_toolbox::Pid) on one joint."""
 
@@ -77,19 +81,21 @@ class _EffortPid:
         self.lower, self.upper = lower, upper
         self.has_limits = not continuous and lower < upper
         self.continuous = continuous
+        self.is_position = config.is_position
+        gains = config.pid
+        self.p, self.i, self.d, self.i_clamp = gains.p, gains.i, gains.d, gains.i_clamp
         self.command = 0.0
         self._integral = 0.0
         self._previous_error = 0.0
 
     def reset(self, position: float) -> None:
         """Controller (re)start: a position controller holds the current position, a velocity one stops."""
-        self.command = position if self.config.is_position else 0.0
+        self.command = position if self.is_position else 0.0
         self._integral = 0.0
         self._previous_error = 0.0
 
     def effort(self, position: float, velocity: float, dt: float) -> float:
-        gains = self.config.pid
-        if self.config.is_position:
+        if self.is_position:
             target = min(max(self.command, self.lower), self.upper) if self.has_limits else self.command
             error = target - position
             if self.continuous:
@@ -99,10 +105,11 @@ class _EffortPid:
             error = self.command - velocity
             error_dot = (error - self._previous_error) / dt
             self._previous_error = error
-        if gains.i_clamp > 0.0:
-            self._integral = min(max(self._integral + gains.i * error * dt, -gains.i_clamp), gains.i_clamp)
-        effort = gains.p * error + self._integral + gains.d * error_dot
-        return min(max(effort, -self.effort_limit), self.effort_limit)
+        if self.i_clamp > 0.0:
+            self._integral = min(max(self._integral + self.i * error * dt, -self.i_clamp), self.i_clamp)
+        effort = self.p * error + self._integral + self.d * error_dot
+        limit = self.effort_limit
+        return -limit if effort < -limit else (limit if effort > limit else effort)
 
 
 class World:
@@ -183,8 +190,10 @@ class World:
                                                 continuous=urdf_joints[controller.joint].type == "continuous"))
         self._controller_by_name = {c.config.name: c for c in self._controllers}
         self._controlled_indices = [c.joint_index for c in self._controllers]
-        self._effort_slot = {index: slot for slot, index in enumerate(movable)}
-        self._applied_effort = [0.0] * len(movable)
+        # joint_states' effort column: each movable joint's controller output of the last step, or 0
+        self._effort_slots = [self._controlled_indices.index(i) if i in self._controlled_indices else None
+                              for i in movable]
+        self._controller_efforts = [0.0] * len(self._controllers)
 
         for sensor in self.config.sensors:
             if sensor.link not in self._link_index:
@@ -218,27 +227,29 @@ class World:
         """Advance `count` physics steps, running every controller before each one."""
         cid, body, dt = self._cid, self._body, self.time_step
         controllers, indices = self._controllers, self._controlled_indices
+        efforts = self._controller_efforts
         for _ in range(count):
             if controllers:
                 states = p.getJointStates(body, indices, physicsClientId=cid)
                 efforts = [c.effort(s[0], s[1], dt) for c, s in zip(controllers, states)]
                 p.setJointMotorControlArray(body, indices, p.TORQUE_CONTROL, forces=efforts, physicsClientId=cid)
-                for controller, effort in zip(controllers, efforts):
-                    self._applied_effort[self._effort_slot[controller.joint_index]] = effort
             p.stepSimulation(physicsClientId=cid)
-            self.step_count += 1
+        self.step_count += count
+        self._controller_efforts = efforts
 
     # -- resets ---------------------------------------------------------------------------------
     def _reset_controllers(self) -> None:
         states = p.getJointStates(self._body, self._controlled_indices, physicsClientId=self._cid) if self._controllers else []
         for controller, state in zip(self._controllers, states):
             controller.reset(state[0])
-        self._applied_effort = [0.0] * len(self._movable)
+        self._controller_efforts = [0.0] * len(self._controllers)
         self._imu_previous.clear()
 
     def reset_world(self) -> None:
         """Back to the spawn pose at rest with controllers restarted; time keeps going."""
         p.restoreState(self._saved_state, physicsClientId=self._cid)
+        # restoreState keeps the contact points of the last step: recompute them for the restored pose.
+        p.performCollisionDetection(physicsClientId=self._cid)
         self._reset_controllers()
 
     def reset_simulation(self) -> None:
@@ -266,9 +277,10 @@ class World:
 
     def read_joint_states(self) -> JointStateReading:
         states = p.getJointStates(self._body, self._movable, physicsClientId=self._cid)
+        efforts = self._controller_efforts
         return JointStateReading(stamp=self.time, name=self.joint_names,
                                  position=tuple(s[0] for s in states), velocity=tuple(s[1] for s in states),
-                                 effort=tuple(self._applied_effort))
+                                 effort=tuple(0.0 if slot is None else efforts[slot] for slot in self._effort_slots))
 
     def read_odometry(self, sensor: SensorConfig) -> OdometryReading:
         position, orientation, linear, angular = self._link_pose_twist(sensor.link)
@@ -314,27 +326,27 @@ class World:
         in_link_frame = sensor.frame_id == sensor.link
         own_name = f"{self.robot_name}::{sensor.link}::{sensor.link}_collision"
         contacts = []
-        total_force = np.zeros(3)
-        total_torque = np.zeros(3)
+        total_force = (0.0, 0.0, 0.0)
+        total_torque = (0.0, 0.0, 0.0)
         for point in points:
-            normal = np.array(point[7])
-            force = point[9] * normal + point[10] * np.array(point[11]) + point[12] * np.array(point[13])
-            position = np.array(point[5])
-            torque = np.cross(position - np.array(origin), force)
-            total_force += force
-            total_torque += torque
+            normal, normal_force = point[7], point[9]
+            f1, d1, f2, d2 = point[10], point[11], point[12], point[13]
+            force = tuple(normal_force * n + f1 * a + f2 * b for n, a, b in zip(normal, d1, d2))
+            position = point[5]
+            torque = _cross(tuple(c - o for c, o in zip(position, origin)), force)
+            total_force = tuple(t + f for t, f in zip(total_force, force))
+            total_torque = tuple(t + q for t, q in zip(total_torque, torque))
             other = GROUND_COLLISION_NAME if point[2] == self._plane else f"{self.robot_name}::link{point[4]}::collision"
             if in_link_frame:
                 force, torque, normal = (_transpose_rotate(orientation, v) for v in (force, torque, normal))
-            contacts.append(ContactPoint(collision1_name=own_name, collision2_name=other,
-                                         force=tuple(map(float, force)), torque=tuple(map(float, torque)),
-                                         position=tuple(map(float, position)), normal=tuple(map(float, normal)),
-                                         depth=float(-point[8])))
+            contacts.append(ContactPoint(collision1_name=own_name, collision2_name=other, force=force,
+                                         torque=torque, position=tuple(position), normal=tuple(normal),
+                                         depth=-point[8]))
         if in_link_frame:
             total_force = _transpose_rotate(orientation, total_force)
             total_torque = _transpose_rotate(orientation, total_torque)
         return ContactReading(stamp=self.time, frame_id=sensor.frame_id, contacts=tuple(contacts),
-                              total_force=tuple(map(float, total_force)), total_torque=tuple(map(float, total_torque)))
+                              total_force=total_force, total_torque=total_torque)
 
     def read_sensor(self, sensor: SensorConfig):
         """The reading of one configured sensor (odometry, IMU or contact)."""

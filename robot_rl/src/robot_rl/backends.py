@@ -107,15 +107,14 @@ class RosBackend(Backend):
         from pybullet_sim.msg import ContactsState
 
         self.timeout = timeout
+        self.sim = SimConnection(timeout)  # waits (bounded) for the sim node's services
         try:
             params = rospy.get_param(sim_node)
         except KeyError:
-            raise SimConnectionError(f"parameter {sim_node} is missing: no sim node is configured on this master "
-                                     f"({rospy.get_master().getUri()[2]}); start one, e.g. "
-                                     f"./ws exec roslaunch launch/cube_sim.launch") from None
+            raise SimConnectionError(f"parameter {sim_node} is missing: the sim node on this master "
+                                     f"({rospy.get_master().getUri()[2]}) is not named {sim_node}") from None
         self.config = parse_robot_config(params, where=sim_node)
         self.time_step = float(params.get("time_step", 0.001))
-        self.sim = SimConnection(timeout)
         self._commands: Dict[str, CommandPublisher] = {
             c.name: CommandPublisher(self.config.command_topic(c)) for c in self.config.controllers}
         kinds = {"p3d": (Odometry, messages.odometry_reading), "imu": (Imu, messages.imu_reading),
@@ -137,6 +136,10 @@ class RosBackend(Backend):
 
     def _marks(self):
         return [s.count for s in self._subscribers]
+
+    def latest(self) -> Readings:
+        """The last reading of every sensor, without waiting (the tutorials' way of reading)."""
+        return Readings(self._joints.latest, {name: s.latest for name, s in self._sensors.items()})
 
     def reset(self, restart_time: bool = False) -> Readings:
         marks = self._marks()

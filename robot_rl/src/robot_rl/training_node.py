@@ -72,10 +72,15 @@ def run_training_node(spec: TrainingNodeSpec, node_name: str) -> int:
     def on_step(reward: float, cumulated: float) -> None:
         reward_pub.publish(Float64(cumulated if spec.publish_cumulated_reward else reward))
 
-    trainer = QLearningTrainer(env, spec.make_state_key(params), make_trainer_config(params), run,
-                               log=rospy.loginfo, on_step=on_step,
-                               on_episode=lambda cumulated: episode_reward_pub.publish(Float64(cumulated)),
-                               should_stop=rospy.is_shutdown, resume=resume)
+    try:
+        trainer = QLearningTrainer(env, spec.make_state_key(params), make_trainer_config(params), run,
+                                   log=rospy.loginfo, on_step=on_step,
+                                   on_episode=lambda cumulated: episode_reward_pub.publish(Float64(cumulated)),
+                                   should_stop=rospy.is_shutdown, resume=resume)
+    except (FileNotFoundError, ValueError) as error:
+        rospy.logfatal(str(error))
+        env.close()
+        return 1
     try:
         summary = trainer.train()
     except SimConnectionError as error:

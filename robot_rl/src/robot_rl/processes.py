@@ -1,0 +1,95 @@
+"""Processes run against a private ROS master: a rosmaster on a free loopback port, and every process
+started here ended by its PID (process group) on close(). Used by the integration tests and the
+benchmark, which must leave nothing running."""
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import time
+from pathlib import Path
+from typing import List
+
+import rosgraph
+
+REPO = Path(__file__).resolve().parents[3]
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def stop(process: subprocess.Popen, timeout: float = 10.0) -> None:
+    """End a process group we started: SIGINT (roslaunch shuts its nodes down), then SIGKILL."""
+    if process.poll() is not None:
+        return
+    for sig in (signal.SIGINT, signal.SIGKILL):
+        try:
+            os.killpg(process.pid, sig)
+        except ProcessLookupError:
+            return
+        try:
+            process.wait(timeout)
+            return
+        except subprocess.TimeoutExpired:
+            continue
+
+
+class Processes:
+    """Processes started for one test, with one environment; close() ends them all by PID."""
+
+    def __init__(self, log_dir: Path, **env: str):
+        self.env = dict(os.environ, ROS_LOG_DIR=str(log_dir), ROS_HOME=str(log_dir), **env)
+        self._processes: List[subprocess.Popen] = []
+
+    def start(self, command: List[str], **kwargs) -> subprocess.Popen:
+        process = subprocess.Popen(command, env=self.env, cwd=REPO, start_new_session=True, **kwargs)
+        self._processes.append(process)
+        return process
+
+    def run(self, command: List[str], timeout: float) -> subprocess.CompletedProcess:
+        """Run a command to completion (bounded), capturing its output."""
+        process = self.start(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            stdout, stderr = process.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            stop(process)
+            stdout, stderr = process.communicate()
+            raise AssertionError(f"{' '.join(command)} did not finish within {timeout} s\n{stdout}\n{stderr}")
+        return subprocess.CompletedProcess(command, process.returncode, stdout, stderr)
+
+    def close(self) -> None:
+        for process in reversed(self._processes):
+            stop(process)
+
+
+class RosMaster(Processes):
+    """A rosmaster on a free loopback port; processes started here talk to it."""
+
+    def __init__(self, log_dir: Path):
+        port = free_port()
+        self.uri = f"http://127.0.0.1:{port}"
+        super().__init__(log_dir, ROS_MASTER_URI=self.uri, ROS_HOSTNAME="127.0.0.1")
+        master = self.start(["rosmaster", "--core", "-p", str(port)])
+        deadline = time.monotonic() + 20.0
+        while True:  # bounded poll: rosmaster has no readiness signal
+            try:
+                self.params.getPid()
+                return
+            except OSError:
+                if master.poll() is not None or time.monotonic() > deadline:
+                    self.close()
+                    raise RuntimeError(f"rosmaster on {self.uri} did not come up within 20 s")
+                time.sleep(0.05)
+
+    @property
+    def params(self) -> rosgraph.Master:
+        return rosgraph.Master("/pytest", master_uri=self.uri)
+
+
+def launch_args(**args: object) -> List[str]:
+    """roslaunch's `name:=value` arguments."""
+    return [f"{key}:={value}" for key, value in args.items()]

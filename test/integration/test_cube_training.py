@@ -1,0 +1,253 @@
+"""The cube's Q-learning training end to end over ROS (launch/main.launch on its own master):
+a short run writes every results file, a SIGKILLed run resumes without losing or repeating an
+episode, bad params stop the node with one clear line, and evaluate.py reports as documented."""
+import json
+import os
+import re
+import signal
+import subprocess
+import time
+import xmlrpc.client
+from pathlib import Path
+
+import pytest
+import yaml
+
+from conftest import REPO, Processes, RosMaster, launch_args
+
+CONFIG = REPO / "config" / "moving_cube_qlearn.yaml"
+HEADER = "episode,steps,return,epsilon,sim_time,wall_time"
+RESULTS_FILES = ("params.yaml", "episodes.csv", "qtable.json", "learning_curve.png", "summary.json")
+
+
+def write_config(path: Path, **changes) -> Path:
+    document = yaml.safe_load(CONFIG.read_text())
+    document["moving_cube"].update(changes)
+    path.write_text(yaml.safe_dump(document))
+    return path
+
+
+def start_training(master: RosMaster, results: Path, config: Path, log: Path, **args) -> subprocess.Popen:
+    with open(log, "w") as out:
+        return master.start(["roslaunch", "launch/main.launch",
+                             *launch_args(results_dir=results, config=config, **args)],
+                            stdout=out, stderr=subprocess.STDOUT)
+
+
+def wait_exit(process: subprocess.Popen, timeout: float, log: Path) -> int:
+    try:
+        return process.wait(timeout)
+    except subprocess.TimeoutExpired:
+        raise AssertionError(f"roslaunch did not exit within {timeout} s:\n{log.read_text()[-4000:]}") from None
+
+
+def complete_lines(csv_path: Path) -> list:
+    """episodes.csv lines that end with a newline (a torn last line is not a row yet)."""
+    return csv_path.read_text().split("\n")[:-1]
+
+
+def episode_numbers(csv_path: Path) -> list:
+    lines = complete_lines(csv_path)
+    assert lines[0] == HEADER
+    return [int(line.split(",")[0]) for line in lines[1:]]
+
+
+def wait_for(predicate, timeout: float, what: str, interval: float = 0.01):
+    end = time.monotonic() + timeout
+    while True:
+        value = predicate()
+        if value:
+            return value
+        if time.monotonic() > end:
+            raise AssertionError(f"{what} did not happen within {timeout} s")
+        time.sleep(interval)  # bounded poll of files written by another process
+
+
+# -- a short training run, shared by two tests ---------------------------------------------------
+
+@pytest.fixture(scope="module")
+def three_episodes(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("three_episodes")
+    config = write_config(tmp / "config.yaml", nepisodes=3, nsteps=50)
+    results, log = tmp / "results", tmp / "roslaunch.log"
+    master = RosMaster(tmp / "ros")
+    try:
+        start = time.monotonic()
+        code = wait_exit(start_training(master, results, config, log), 180, log)
+        elapsed = time.monotonic() - start
+    finally:
+        master.close()
+    return {"code": code, "results": results, "log": log.read_text(), "elapsed": elapsed}
+
+
+def test_three_episodes_end_to_end_over_ros(three_episodes):
+    output = three_episodes["log"]
+    assert three_episodes["code"] == 0, output[-4000:]
+    run = three_episodes["results"] / "moving_cube" / "latest"
+    assert run.is_symlink()
+    for name in RESULTS_FILES:
+        assert (run / name).is_file(), f"{name} missing; {output[-3000:]}"
+    assert episode_numbers(run / "episodes.csv") == [1, 2, 3]
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["completed"] is True and summary["episodes"] == 3
+    assert json.loads((run / "qtable.json").read_text())["episode"] == 3
+    assert (run / "learning_curve.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    params = yaml.safe_load((run / "params.yaml").read_text())
+    assert (params["nepisodes"], params["nsteps"]) == (3, 50)
+    assert re.search(r"^\[INFO\].*EP: 3 - ", output, re.M), output[-3000:]
+    assert "REQUIRED process [movingcube_gym" in output and "process has finished cleanly" in output
+
+
+def test_evaluate_prints_one_json_line(three_episodes, tmp_path):
+    run = three_episodes["results"] / "moving_cube" / "latest"
+    runner = Processes(tmp_path)
+    try:
+        outputs = [runner.run(["rosrun", "moving_cube_training", "evaluate.py", "--qtable", str(qtable),
+                               "--episodes", "2", "--backend", "direct"], timeout=120)
+                   for qtable in (run, run / "qtable.json")]
+        missing = runner.run(["rosrun", "moving_cube_training", "evaluate.py", "--qtable",
+                              str(tmp_path / "nothing"), "--episodes", "2", "--backend", "direct"], timeout=120)
+    finally:
+        runner.close()
+    for result in outputs:
+        assert result.returncode == 0, result.stderr
+    report = json.loads(outputs[0].stdout.strip().splitlines()[-1])
+    assert report["episodes"] == 2
+    for policy in ("greedy", "random"):
+        assert set(report[policy]) == {"mean_return", "mean_y_distance", "success_rate"}
+        assert all(isinstance(v, float) for v in report[policy].values())
+        assert 0.0 <= report[policy]["success_rate"] <= 1.0
+    assert outputs[0].stdout.strip().splitlines()[-1] == outputs[1].stdout.strip().splitlines()[-1], \
+        "the run folder and its qtable.json are the same Q-table; the direct backend is deterministic"
+    assert missing.returncode == 2 and "cannot read the trained Q-table" in missing.stderr
+
+
+# -- SIGKILL and resume --------------------------------------------------------------------------
+
+def training_node_pid(master: RosMaster) -> int:
+    """The pid of the (anonymous) training node, asked from the node itself over XML-RPC."""
+    publishers, _, _ = master.params.getSystemState()
+    names = {node for _, nodes in publishers for node in nodes if node.startswith("/movingcube_gym")}
+    assert len(names) == 1, names
+    code, message, pid = xmlrpc.client.ServerProxy(master.params.lookupNode(names.pop())).getPid("/pytest")
+    assert code == 1, message
+    return pid
+
+
+def test_sigkill_between_checkpoints_then_resume(tmp_path):
+    # Angle limits out of reach: every episode lasts nsteps, so checkpoints (every 10 episodes) are
+    # about 1.5 s apart and the kill lands between two of them.
+    config = write_config(tmp_path / "config.yaml", nepisodes=40, nsteps=50, max_pitch_angle=10.0,
+                          max_yaw_angle=10.0)
+    results = tmp_path / "results"
+    run = results / "moving_cube" / "latest"
+    csv_path, qtable = run / "episodes.csv", run / "qtable.json"
+
+    def checkpoint_then_more():
+        if not qtable.exists():
+            return None
+        episode = json.loads(qtable.read_text())["episode"]
+        return episode >= 10 and len(complete_lines(csv_path)) - 1 > episode
+
+    master = RosMaster(tmp_path / "ros")
+    try:
+        log = tmp_path / "first.log"
+        launch = start_training(master, results, config, log)
+        wait_for(checkpoint_then_more, 120, "a checkpoint at episode >= 10 followed by another episode")
+        os.kill(training_node_pid(master), signal.SIGKILL)
+        wait_exit(launch, 60, log)  # the node is required: roslaunch shuts the rest down
+    finally:
+        master.close()
+    first_output = log.read_text()
+    assert "REQUIRED process [movingcube_gym" in first_output and "exit code -9" in first_output, \
+        first_output[-3000:]
+
+    checkpoint = json.loads(qtable.read_text())
+    saved = checkpoint["episode"]
+    lines_at_kill = complete_lines(csv_path)
+    logged = [int(line.split(",")[0]) for line in lines_at_kill[1:]]
+    assert saved % 10 == 0 and saved < 40
+    assert logged == list(range(1, len(logged) + 1)) and len(logged) > saved, "killed between two checkpoints"
+    assert not (run / "summary.json").exists(), "a killed run has no summary"
+    checkpointed_bytes = "".join(line + "\n" for line in lines_at_kill[:saved + 1]).encode()
+
+    master = RosMaster(tmp_path / "resume")
+    try:
+        log = tmp_path / "resume.log"
+        code = wait_exit(start_training(master, results, config, log, resume="true"), 180, log)
+    finally:
+        master.close()
+    output = log.read_text()
+    assert code == 0, output[-4000:]
+    assert re.search(rf"Resuming .* after episode {saved} ", output), output[-3000:]
+    first_episode = re.search(r"EP: (\d+) - ", output)
+    assert first_episode and int(first_episode.group(1)) == saved + 1, output[-3000:]
+
+    assert episode_numbers(csv_path) == list(range(1, 41))
+    assert csv_path.read_bytes().startswith(checkpointed_bytes), "rows up to the checkpoint must not change"
+    rows = complete_lines(csv_path)
+    epsilon = float(rows[saved + 1].split(",")[3])
+    assert epsilon == pytest.approx(checkpoint["qlearn"]["epsilon"] * 0.999, rel=1e-12)
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["completed"] is True and summary["episodes"] == 40
+    assert json.loads(qtable.read_text())["episode"] == 40
+    assert len(list((results / "moving_cube").iterdir())) == 2, "resume continues the run, it does not start one"
+
+
+# -- bad params ----------------------------------------------------------------------------------
+
+def test_bad_params_stop_the_node_with_one_line(ros_master, tmp_path):
+    config = write_config(tmp_path / "bad.yaml", alpha=1.5)
+    results, log = tmp_path / "results", tmp_path / "roslaunch.log"
+    start = time.monotonic()
+    wait_exit(start_training(ros_master, results, config, log), 60, log)
+    elapsed = time.monotonic() - start
+    output = log.read_text()
+    died = re.search(r"process has died \[pid \d+, exit code (-?\d+), cmd \S*start_training\.py", output)
+    assert died and int(died.group(1)) != 0, output[-3000:]
+    assert elapsed < 30
+    errors = [line for line in output.splitlines() if "'alpha'" in line]
+    assert errors, output[-3000:]
+    assert all(str(config) in line and "1.5" in line for line in errors), errors
+    assert "Traceback" not in output
+    assert not results.exists(), "nothing may be written before the params are valid"
+
+
+@pytest.mark.parametrize("previous_run", [
+    "none",
+    "without_checkpoint",
+])
+def test_resume_with_nothing_to_resume_stops_with_one_line(ros_master, tmp_path, previous_run):
+    from robot_rl.results import RunDirectory
+    results, log = tmp_path / "results", tmp_path / "roslaunch.log"
+    expected = "no previous run under"
+    if previous_run == "without_checkpoint":
+        run = RunDirectory.create(results, "moving_cube", {"nepisodes": 3})
+        expected = f"no checkpoint {run.path / 'qtable.json'}"
+    config = write_config(tmp_path / "config.yaml", nepisodes=3, nsteps=50)
+    wait_exit(start_training(ros_master, results, config, log, resume="true"), 60, log)
+    output = log.read_text()
+    died = re.search(r"process has died \[pid \d+, exit code (-?\d+), cmd \S*start_training\.py", output)
+    assert died and int(died.group(1)) != 0, output[-3000:]
+    assert "Traceback" not in output, output[-3000:]
+    assert re.search(rf"^\[FATAL\].*{re.escape(expected)}", output, re.M), output[-3000:]
+
+
+# -- lockstep with a second backend in one node --------------------------------------------------
+
+def test_a_second_backend_in_one_node_applies_every_command(ros_master):
+    ros_master.start(["roslaunch", "launch/cube_sim.launch", *launch_args(paused="true")],
+                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+    def sim_up():
+        try:
+            return ros_master.params.lookupService("/pybullet_sim/step")
+        except Exception:  # rosgraph.MasterError until the sim registers
+            return None
+    wait_for(sim_up, 60, "the sim node's step service", interval=0.05)
+    result = ros_master.run(["python", str(Path(__file__).with_name("cube_env_node.py")),
+                             "--second-backend-cycles", "1000"], timeout=120)
+    assert result.returncode == 0, result.stderr[-3000:]
+    misses = json.loads(result.stdout.strip().splitlines()[-1])
+    assert misses["first"] == 0, f"the first backend missed commands: {misses}"
+    assert misses["second"] == 0, f"{misses['second']} of 1000 steps of the second backend ran with a stale command"
