@@ -26,19 +26,39 @@ COMMANDS = {joint: f"/monoped/{joint}_position_controller/command" for joint in 
 CONTACT_TOPIC = "/lowerleg_contactsensor_state"
 CHECK_ENV_TIMEOUT = 120.0  # wall s for check_env over ROS (a few hundred lockstep steps plus start-up)
 
-# check_env runs in its own process, hence as its own ROS node: the sim counts lockstep commands per
-# (topic, caller), and this node's own CommandPublishers on the same topics would add to the counts
-# that the env's publishers announce.
+# The env checks run in their own process, as their own ROS node, with a fresh env: check_env, then
+# a seeded episode of 200 fixed actions over ROS must give exactly the observations of the direct
+# backend (an in-process World with the sim launch's seed 0).
 CHECK_ENV = """
-import rospy, gymnasium, hopper_training
+import numpy as np, rospy, gymnasium, hopper_training
 from gymnasium.utils.env_checker import check_env
 rospy.init_node("hopper_check_env")
+actions = [int(a) for a in np.random.default_rng(7).integers(0, 6, size=200)]
+
+def episode(env):
+    observation, _ = env.reset(seed=0)
+    observations = [observation]
+    for action in actions:
+        observation, _, terminated, truncated, _ = env.step(action)
+        observations.append(observation)
+        if terminated or truncated:
+            break
+    return np.array(observations)
+
 env = gymnasium.make(hopper_training.ENV_ID, backend="ros").unwrapped
+direct_env = gymnasium.make(hopper_training.ENV_ID, backend="direct", seed=0).unwrapped
 try:
     check_env(env, skip_render_check=True)
+    print("check_env passed")
+    over_ros, direct = episode(env), episode(direct_env)
 finally:
     env.close()
-print("check_env passed")
+    direct_env.close()
+assert over_ros.shape == direct.shape == (201, 8), (over_ros.shape, direct.shape)
+assert np.abs(over_ros - over_ros[0]).max() > 1e-3, "the actions should change the observations"
+difference = float(np.abs(over_ros - direct).max())
+assert difference <= 1e-9, f"ROS and direct observations differ by {difference}"
+print("ROS matches direct")
 """
 
 # What the env does around a reset (the init pose, then the first action, with no step in between),
@@ -260,10 +280,10 @@ class HopperSimTest(unittest.TestCase):
         self.assertAlmostEqual(joints.effort[1], expected_effort, delta=0.01)
 
     # -- the env over ROS -----------------------------------------------------------------------
-    def test_check_env_over_ros(self):
+    def test_check_env_over_ros_and_same_observations_as_direct(self):
         returncode, stdout, stderr = run_script(CHECK_ENV, CHECK_ENV_TIMEOUT)
         self.assertEqual(returncode, 0, f"{stdout}\n{stderr}")
-        self.assertEqual(stdout.strip().splitlines()[-1], "check_env passed", stdout)
+        self.assertEqual(stdout.strip().splitlines()[-2:], ["check_env passed", "ROS matches direct"], stdout)
 
     def test_several_commands_per_topic_between_two_steps(self):
         """Step.srv: "a command published before the call is always applied in this step".

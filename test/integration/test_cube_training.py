@@ -98,6 +98,23 @@ def test_three_episodes_end_to_end_over_ros(three_episodes):
     assert "REQUIRED process [movingcube_gym" in output and "process has finished cleanly" in output
 
 
+def test_two_training_runs_over_ros_with_the_same_seed_write_identical_returns(three_episodes, tmp_path):
+    """Lockstep makes training reproducible: a second run on a fresh master and sim repeats the first."""
+    config = write_config(tmp_path / "config.yaml", nepisodes=3, nsteps=50)
+    results, log = tmp_path / "results", tmp_path / "roslaunch.log"
+    master = RosMaster(tmp_path / "ros")
+    try:
+        assert wait_exit(start_training(master, results, config, log), 180, log) == 0, log.read_text()[-3000:]
+    finally:
+        master.close()
+
+    def returns(root: Path) -> list:
+        return [line.split(",")[2] for line in complete_lines(root / "moving_cube" / "latest" / "episodes.csv")[1:]]
+    first, second = returns(three_episodes["results"]), returns(results)
+    assert len(first) == 3 and first == second
+    assert len(set(first)) > 1, "different episodes should have different returns"
+
+
 def test_evaluate_prints_one_json_line(three_episodes, tmp_path):
     run = three_episodes["results"] / "moving_cube" / "latest"
     runner = Processes(tmp_path)

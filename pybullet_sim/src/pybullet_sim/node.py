@@ -149,7 +149,7 @@ class SimNode:
 
     def _publish_sensor(self, sensor: SensorConfig, publisher, to_msg, stamp):
         publisher.publish(to_msg(self.world.read_sensor(sensor), stamp))
-        if sensor.type == "p3d":
+        if sensor.type == "p3d" and self._tf.pub_tf.get_num_connections():
             position, orientation = self.world.link_pose(sensor.link)
             self._tf.sendTransform(messages.transform_msg(sensor.frame_id, sensor.link, position, orientation, stamp))
 

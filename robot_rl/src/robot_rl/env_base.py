@@ -20,7 +20,7 @@ from .backends import Backend, Readings
 
 
 class RobotEnv(gymnasium.Env, abc.ABC):
-    """Subclasses set action_space/observation_space and implement the four task hooks."""
+    """Subclasses set a Discrete action_space and an observation_space, and implement the task hooks."""
 
     metadata = {"render_modes": []}
 
@@ -72,7 +72,8 @@ class RobotEnv(gymnasium.Env, abc.ABC):
     def step(self, action):
         if self.readings is None:
             raise gymnasium.error.ResetNeeded("call reset() before step()")
-        if not self.action_space.contains(action):
+        # A direct range check: Discrete.contains costs as much as a tenth of a lockstep exchange.
+        if not (isinstance(action, (int, np.integer)) and 0 <= action < self.action_space.n):
             raise ValueError(f"action {action!r} is not in {self.action_space}")
         self._apply_action(int(action))
         self.readings = self.backend.step(self.physics_steps)
