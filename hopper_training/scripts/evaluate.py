@@ -14,11 +14,10 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from hopper_training.monoped_env import MonopedEnv
 from hopper_training.params import validate_params
-from robot_rl.qlearn import QLearn
+from robot_rl.evaluation import greedy_and_random, load_trained_run
 
 
 def run_episodes(env, policy, episodes: int) -> dict:
@@ -49,27 +48,17 @@ def main(argv) -> int:
     args = parser.parse_args(argv)
     if args.episodes < 1 or args.horizon < 1:
         parser.error("--episodes and --horizon must be >= 1")
-    qtable = args.qtable / "qtable.json" if args.qtable.is_dir() else args.qtable
     try:
-        qlearn = QLearn.from_dict(json.loads(qtable.read_text())["qlearn"])
-        params_file = qtable.with_name("params.yaml")
-        params = validate_params(yaml.safe_load(params_file.read_text()), str(params_file))
+        qlearn, params = load_trained_run(args.qtable, validate_params)
     except (OSError, KeyError, ValueError) as error:
-        parser.error(f"cannot read the trained Q-table {qtable}: {error}")
+        parser.error(f"cannot read the trained run {args.qtable}: {error}")
     params["nsteps"] = args.horizon
     if args.backend == "ros":
         import rospy
         rospy.init_node("evaluate_monoped", anonymous=True)
     env = MonopedEnv(backend=args.backend, params=params, seed=args.seed)
-    state = env.monoped_state
-    qlearn.rng.seed(args.seed)
-    rng = np.random.default_rng(args.seed)
-    try:
-        env.reset(seed=args.seed)
-        greedy = run_episodes(env, lambda obs: qlearn.greedy_action(state.get_state_as_string(obs)), args.episodes)
-        random_policy = run_episodes(env, lambda obs: int(rng.integers(env.action_space.n)), args.episodes)
-    finally:
-        env.close()
+    greedy, random_policy = greedy_and_random(env, env.monoped_state.get_state_as_string, qlearn, args.episodes,
+                                              args.seed, run_episodes)
     print(json.dumps({"episodes": args.episodes, "horizon_steps": args.horizon, "greedy": greedy,
                       "random": random_policy}))
     return 0

@@ -13,12 +13,11 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from moving_cube_training.one_disk_walk import MovingCubeOneDiskWalkEnv
 from moving_cube_training.params import validate_params
 from moving_cube_training.state import CubeStateKey
-from robot_rl.qlearn import QLearn
+from robot_rl.evaluation import greedy_and_random, load_trained_run
 
 SUCCESS_DISTANCE = 0.5  # m along +y
 
@@ -48,27 +47,16 @@ def main(argv) -> int:
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error("--episodes must be >= 1")
-    qtable = args.qtable / "qtable.json" if args.qtable.is_dir() else args.qtable
     try:
-        checkpoint = json.loads(qtable.read_text())
-        qlearn = QLearn.from_dict(checkpoint["qlearn"])
-        params_file = qtable.with_name("params.yaml")
-        params = validate_params(yaml.safe_load(params_file.read_text()), str(params_file))
+        qlearn, params = load_trained_run(args.qtable, validate_params)
     except (OSError, KeyError, ValueError) as error:
-        parser.error(f"cannot read the trained Q-table {qtable}: {error}")
+        parser.error(f"cannot read the trained run {args.qtable}: {error}")
     if args.backend == "ros":
         import rospy
         rospy.init_node("evaluate_moving_cube", anonymous=True)
     env = MovingCubeOneDiskWalkEnv(backend=args.backend, params=params, seed=args.seed)
-    key = CubeStateKey(params)
-    qlearn.rng.seed(args.seed)
-    rng = np.random.default_rng(args.seed)
-    try:
-        env.reset(seed=args.seed)
-        greedy = run_episodes(env, lambda obs: qlearn.greedy_action(key.key(obs)), args.episodes)
-        random_policy = run_episodes(env, lambda obs: int(rng.integers(env.action_space.n)), args.episodes)
-    finally:
-        env.close()
+    greedy, random_policy = greedy_and_random(env, CubeStateKey(params).key, qlearn, args.episodes, args.seed,
+                                              run_episodes)
     print(json.dumps({"episodes": args.episodes, "greedy": greedy, "random": random_policy}))
     return 0
 

@@ -133,12 +133,12 @@ def _cube_training_wall_time(log_dir: Path, episodes: int) -> float:
 
 def _machine() -> str:
     import os
+    from importlib.metadata import version
 
-    import pybullet
     cpu = next((line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
                 if line.startswith("model name")), platform.processor())
     return (f"{cpu}, {os.cpu_count()} cores, {platform.platform()}, Python {platform.python_version()}, "
-            f"pybullet {pybullet.getAPIVersion()}")
+            f"pybullet {version('pybullet')}")
 
 
 def orchestrate(reps: int, output: Path) -> dict:

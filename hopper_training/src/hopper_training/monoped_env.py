@@ -40,9 +40,8 @@ class MonopedEnv(RobotEnv):
         """`params`: validated hopper params (default: config/hopper_qlearn.yaml).
         `backend`: "ros" (a running sim node), "direct" (in-process World seeded with `seed`) or a Backend."""
         self.params = dict(params) if params is not None else load_default_params()
-        if not isinstance(backend, Backend):
-            backend = make_backend(backend, URDF, SIM_CONFIG, seed=seed, timeout=ros_timeout)
-        super().__init__(backend, running_step=self.params["running_step"], max_episode_steps=self.params["nsteps"])
+        super().__init__(make_backend(backend, URDF, SIM_CONFIG, seed=seed, timeout=ros_timeout),
+                         running_step=self.params["running_step"], max_episode_steps=self.params["nsteps"])
         self.monoped_state = MonopedState.from_params(self.params)
         self.joint_pub = JointPub(self.backend)
         self.action_space = spaces.Discrete(6)

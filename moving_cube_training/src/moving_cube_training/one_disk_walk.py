@@ -43,9 +43,8 @@ class MovingCubeOneDiskWalkEnv(RobotEnv):
         """`params`: the validated /moving_cube/ params (default: config/moving_cube_qlearn.yaml).
         `backend`: "ros" (a running sim node), "direct" (in-process World seeded with `seed`) or a Backend."""
         self.params = dict(params) if params is not None else load_default_params()
-        if not isinstance(backend, Backend):
-            backend = make_backend(backend, URDF, SIM_CONFIG, seed=seed, timeout=ros_timeout)
-        super().__init__(backend, running_step=self.params["running_step"], max_episode_steps=self.params["nsteps"],
+        super().__init__(make_backend(backend, URDF, SIM_CONFIG, seed=seed, timeout=ros_timeout),
+                         running_step=self.params["running_step"], max_episode_steps=self.params["nsteps"],
                          settle_time=self.params["reset_settle_time"])
         if self.params["n_actions"] != N_ACTIONS:
             raise ValueError(f"n_actions must be {N_ACTIONS} for this task, got {self.params['n_actions']}")

@@ -163,9 +163,12 @@ class RosBackend(Backend):
         self.sim.close()
 
 
-def make_backend(kind: str, urdf_path: Path, sim_config_path: Path, seed: Optional[int] = None,
+def make_backend(kind, urdf_path: Path, sim_config_path: Path, seed: Optional[int] = None,
                  timeout: float = 10.0) -> Backend:
-    """`kind` "ros" (a sim node must be running) or "direct" (an in-process World seeded with `seed`)."""
+    """`kind` "ros" (a sim node must be running), "direct" (an in-process World seeded with `seed`),
+    or a Backend, returned as it is."""
+    if isinstance(kind, Backend):
+        return kind
     if kind == "ros":
         return RosBackend(timeout=timeout)
     if kind == "direct":
