@@ -51,7 +51,7 @@ def main(argv) -> int:
     try:
         qlearn, params = load_trained_run(args.qtable, validate_params)
     except (OSError, KeyError, ValueError) as error:
-        parser.error(f"cannot read the trained run {args.qtable}: {error}")
+        parser.error(f"cannot read the trained Q-table {args.qtable}: {error}")
     params["nsteps"] = args.horizon
     if args.backend == "ros":
         import rospy

@@ -114,10 +114,6 @@ class SensorSubscriber(Generic[Reading]):
         msg = self._latest_msg
         return None if msg is None else self._to_reading(msg)
 
-    @property
-    def latest_msg(self):
-        return self._latest_msg
-
     def wait_newer(self, count: int, timeout: float, stamp: Optional[rospy.Time] = None) -> Reading:
         """Wait for a message after the `count`-th (and stamped `stamp` if given); return its reading."""
         def arrived():
@@ -130,10 +126,6 @@ class SensorSubscriber(Generic[Reading]):
                 raise SimConnectionError(f"no new message on {self.topic}{expected} within {timeout} s{got}; "
                                          f"{HINT} Check `rostopic hz {self.topic}`.")
             return self._to_reading(self._latest_msg)
-
-    def wait_first(self, timeout: float) -> Reading:
-        """Wait until at least one message has arrived."""
-        return self.wait_newer(0, timeout)
 
     def unregister(self) -> None:
         self._subscriber.unregister()

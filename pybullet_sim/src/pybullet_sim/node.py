@@ -100,6 +100,7 @@ class SimNode:
         self._run_state = threading.Condition(self._lock)
         self._commands_arrived = threading.Condition(self._lock)
         self._waiters = 0
+        self._waiters_lock = threading.Lock()  # `+=` on an attribute is not atomic across threads
         self._received: Dict[Tuple[str, str], int] = {}
         self._last_bad_command_warning = -math.inf
 
@@ -133,12 +134,14 @@ class SimNode:
     @contextmanager
     def _exclusive(self):
         """Hold the World lock from a callback thread, asking the free-running loop to step aside."""
-        self._waiters += 1
+        with self._waiters_lock:
+            self._waiters += 1
         try:
             with self._lock:
                 yield
         finally:
-            self._waiters -= 1
+            with self._waiters_lock:
+                self._waiters -= 1
 
     def _stamp(self) -> rospy.Time:
         nanoseconds = self.world.step_count * self._step_ns

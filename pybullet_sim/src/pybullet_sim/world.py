@@ -209,10 +209,6 @@ class World:
         """Simulated seconds since the start or the last reset_simulation."""
         return self.step_count * self.time_step
 
-    @property
-    def controller_names(self) -> Tuple[str, ...]:
-        return tuple(c.config.name for c in self._controllers)
-
     def set_command(self, controller: str, value: float) -> bool:
         """Set a controller's command (rad/s or rad). A NaN or infinite value is ignored: returns False."""
         if not math.isfinite(value):
@@ -351,11 +347,6 @@ class World:
     def read_sensor(self, sensor: SensorConfig):
         """The reading of one configured sensor (odometry, IMU or contact)."""
         return _READERS[sensor.type](self, sensor)
-
-    def base_pose(self) -> Tuple[Tuple[float, float, float], Tuple[float, float, float, float]]:
-        """Noise-free pose of the URDF root link (for tf)."""
-        position, orientation = p.getBasePositionAndOrientation(self._body, physicsClientId=self._cid)
-        return tuple(position), tuple(orientation)
 
     def link_pose(self, link: str):
         """Noise-free world pose of a link's URDF frame."""
