@@ -209,6 +209,9 @@ class SimNode:
 
     def _handle_unpause(self, _request):
         with self._exclusive():
+            if self._paused:
+                # Streams resume one period after the last lockstep step published every sensor.
+                self._restart_schedules()
             self._paused = False
             self._run_state.notify_all()
         return EmptyResponse()
@@ -250,7 +253,6 @@ class SimNode:
                     f"{STEP_SERVICE}: commands from {caller} did not arrive within {self.command_timeout} s on "
                     f"{'; '.join(missing)}; check that the publisher is connected to the sim node")
             self.world.step(request.steps)
-            self._restart_schedules()
             self._publish_all()
             return StepResponse(stamp=self._stamp())
 
