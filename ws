@@ -71,11 +71,14 @@ ensure_catkin_build() {
   [ -e "$ROOT/CMakeLists.txt" ] || ln -s /usr/share/catkin/cmake/toplevel.cmake "$ROOT/CMakeLists.txt"
   # Re-configure when the set of packages changes (catkin finds packages at configure time).
   local packages stamp="$BUILD/.packages.sha256"
-  packages="$(cd "$ROOT" && find . -name package.xml -not -path './.ws/*' | sort | xargs sha256sum | sha256sum | cut -d' ' -f1)"
+  packages="$(cd "$ROOT" && { find . -name package.xml -not -path './.ws/*' | sort | xargs sha256sum; echo "$VENV"; } \
+    | sha256sum | cut -d' ' -f1)"
   if [ ! -f "$BUILD/Makefile" ] || [ "$(cat "$stamp" 2>/dev/null)" != "$packages" ]; then
     log "configuring the catkin build"
     mkdir -p "$BUILD"
-    cmake -S "$ROOT" -B "$BUILD" -DCATKIN_DEVEL_PREFIX="$DEVEL" -DPYTHON_EXECUTABLE="$SYSTEM_PYTHON" \
+    # The venv's python is Debian's /usr/bin/python3 with the pinned PyPI packages beside Debian's
+    # site-packages: the scripts catkin installs (devel and install space) start with it.
+    cmake -S "$ROOT" -B "$BUILD" -DCATKIN_DEVEL_PREFIX="$DEVEL" -DPYTHON_EXECUTABLE="$VENV/bin/python3" \
       -DCATKIN_ENABLE_TESTING=OFF -DCMAKE_BUILD_TYPE=Release >"$BUILD/configure.log" 2>&1 \
       || { cat "$BUILD/configure.log" >&2; die "catkin configure failed (log above)"; }
     echo "$packages" >"$stamp"
@@ -119,27 +122,32 @@ case "$command" in
   setup)
     setup ;;
   run)
+    robot=cube
+    if [ $# -gt 0 ] && [[ "$1" != *:=* ]]; then robot="$1"; shift; fi
+    case "$robot" in
+      cube) package=moving_cube_training ;;
+      hopper) package=hopper_training ;;
+      *) die "unknown robot '$robot' (known: cube, hopper)" ;;
+    esac
     setup
     private_master
     enter_environment
-    robot="${1:-cube}"
-    case "$robot" in
-      cube) exec rosrun robot_rl roslaunch_checked.py "$ROOT/launch/main.launch" ;;
-      hopper) exec rosrun robot_rl roslaunch_checked.py "$ROOT/launch/hopper.launch" ;;
-      *) die "unknown robot '$robot' (known: cube, hopper)" ;;
-    esac ;;
+    exec rosrun workspace_tools roslaunch_checked.py "$package" main.launch "results_dir:=$ROOT/training_results" "$@" ;;
   test)
     setup
     private_master
     enter_environment
     cd "$ROOT"
-    exec python -m pytest -p no:cacheprovider "$@" test ;;
+    # The whole test folder unless the arguments name test files or folders themselves.
+    paths=(test)
+    for arg in "$@"; do [[ "$arg" != -* && -e "${arg%%::*}" ]] && paths=(); done
+    exec python -m pytest -p no:cacheprovider "$@" "${paths[@]}" ;;
   bench)
     setup
     private_master
     enter_environment
     cd "$ROOT"
-    exec rosrun robot_rl bench.py "$@" ;;
+    exec rosrun workspace_tools bench.py "$@" ;;
   exec)
     [ $# -gt 0 ] || die "usage: ./ws exec CMD [ARGS...]"
     setup

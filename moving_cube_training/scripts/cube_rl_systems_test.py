@@ -2,10 +2,10 @@
 """The tutorial's systems test (seed 000's cube_rl_systems_test()): move the cube's wheel at 80, -80
 and 0 rad/s, two seconds apart, then log the cube state, done and reward.
 
-    ./ws exec roslaunch launch/cube_sim.launch paused:=false      # the sim, running
-    ./ws exec rosrun moving_cube_training cube_rl_systems_test.py
+    roslaunch pybullet_sim cube_sim.launch paused:=false      # the sim, running
+    rosrun moving_cube_training cube_rl_systems_test.py
 
-or both at once: ./ws exec roslaunch launch/systems_test.launch (exits when this script is done).
+or both at once: roslaunch moving_cube_training systems_test.launch (exits when this script is done).
 Exit code 0 on success, 1 (with the error printed) if the sim does not answer.
 """
 import sys

@@ -2,16 +2,19 @@
 and every process a test starts is ended by its PID (process group) when the test ends."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
-from robot_rl.processes import REPO, Processes, RosMaster, launch_args, stop  # noqa: F401 (used by the tests)
+from workspace_tools.processes import Processes, RosMaster, launch_args, stop  # noqa: F401 (used by the tests)
+
+REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture
 def ros_master(tmp_path):
-    master = RosMaster(tmp_path)
+    master = RosMaster(tmp_path, cwd=REPO)
     try:
         yield master
     finally:
         master.close()
-

@@ -16,7 +16,7 @@ import numpy as np
 import rospy
 from gymnasium.utils.env_checker import check_env
 
-import moving_cube_training  # registers MovingCubeOneDiskWalk-v0
+from moving_cube_training.one_disk_walk import MOVING_CUBE, ONE_DISK_WALK
 
 SIM_SEED = 0  # cube_sim.launch's default seed
 ACTIONS = [int(a) for a in np.random.default_rng(7).integers(0, 5, size=30)]
@@ -39,7 +39,7 @@ class CubeEnvTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         rospy.init_node("cube_env_test")
-        cls.env = gymnasium.make(moving_cube_training.ENV_ID, backend="ros")
+        cls.env = gymnasium.make(ONE_DISK_WALK.env_id, backend="ros")
 
     @classmethod
     def tearDownClass(cls):
@@ -58,7 +58,7 @@ class CubeEnvTest(unittest.TestCase):
 
     def test_seeded_episodes_repeat_over_ros_and_match_direct(self):
         first, second = episode(self.env), episode(self.env)
-        direct_env = gymnasium.make(moving_cube_training.ENV_ID, backend="direct", seed=SIM_SEED)
+        direct_env = gymnasium.make(ONE_DISK_WALK.env_id, backend="direct", seed=SIM_SEED)
         try:
             direct = episode(direct_env)
         finally:
@@ -96,7 +96,7 @@ def second_backend(cycles):
     rospy.init_node("cube_env_second_backend")
     misses = []
     for _ in range(2):
-        backend = RosBackend(timeout=10.0)
+        backend = RosBackend(MOVING_CUBE, timeout=10.0)
         try:
             misses.append(lockstep_misses(backend, cycles))
         finally:

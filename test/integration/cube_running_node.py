@@ -93,9 +93,9 @@ class CubeRunningTest(unittest.TestCase):
 
     def test_rates_in_sim_time(self):
         for recorder, rate in ((self.joints, 30.0), (self.odom, 50.0)):
-            recent = []
+            recent: list = []
 
-            def three_seconds(messages):
+            def three_seconds(messages, recent=recent):
                 recent[:] = [m for m in messages if stamp(m) >= stamp(messages[-1]) - 3.0]
                 return span(recent) >= 2.9
 

@@ -34,7 +34,8 @@ def run_script():
     except subprocess.TimeoutExpired:
         os.killpg(process.pid, signal.SIGKILL)  # the process group started just above
         stdout, stderr = process.communicate()
-        raise AssertionError(f"{' '.join(SCRIPT)} did not finish within {SCRIPT_TIMEOUT} s\n{stdout}\n{stderr}")
+        raise AssertionError(f"{' '.join(SCRIPT)} did not finish within {SCRIPT_TIMEOUT} s\n{stdout}\n{stderr}") \
+            from None
     return process.returncode, stdout + stderr
 
 
@@ -108,7 +109,7 @@ class CubeSystemsTest(unittest.TestCase):
                     CubeRLUtils(timeout=1.0)
                 self.assertLess(time.monotonic() - start, 5.0)
                 self.assertIn(topic, str(raised.exception))
-                self.assertIn("./ws exec roslaunch launch/cube_sim.launch paused:=false", str(raised.exception))
+                self.assertIn("roslaunch pybullet_sim cube_sim.launch paused:=false", str(raised.exception))
 
     def test_paused_sim_times_out(self):
         """A paused sim publishes nothing, so the sensor check gives up after its timeout."""

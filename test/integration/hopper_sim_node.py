@@ -26,86 +26,20 @@ COMMANDS = {joint: f"/monoped/{joint}_position_controller/command" for joint in 
 CONTACT_TOPIC = "/lowerleg_contactsensor_state"
 CHECK_ENV_TIMEOUT = 120.0  # wall s for check_env over ROS (a few hundred lockstep steps plus start-up)
 
-# The env checks run in their own process, as their own ROS node, with a fresh env: check_env, then
-# a seeded episode of 200 fixed actions over ROS must give exactly the observations of the direct
-# backend (an in-process World with the sim launch's seed 0).
-CHECK_ENV = """
-import numpy as np, rospy, gymnasium, hopper_training
-from gymnasium.utils.env_checker import check_env
-rospy.init_node("hopper_check_env")
-actions = [int(a) for a in np.random.default_rng(7).integers(0, 6, size=200)]
-
-def episode(env):
-    observation, _ = env.reset(seed=0)
-    observations = [observation]
-    for action in actions:
-        observation, _, terminated, truncated, _ = env.step(action)
-        observations.append(observation)
-        if terminated or truncated:
-            break
-    return np.array(observations)
-
-env = gymnasium.make(hopper_training.ENV_ID, backend="ros").unwrapped
-direct_env = gymnasium.make(hopper_training.ENV_ID, backend="direct", seed=0).unwrapped
-try:
-    check_env(env, skip_render_check=True)
-    print("check_env passed")
-    over_ros, direct = episode(env), episode(direct_env)
-finally:
-    env.close()
-    direct_env.close()
-assert over_ros.shape == direct.shape == (201, 8), (over_ros.shape, direct.shape)
-assert np.abs(over_ros - over_ros[0]).max() > 1e-3, "the actions should change the observations"
-difference = float(np.abs(over_ros - direct).max())
-assert difference <= 1e-9, f"ROS and direct observations differ by {difference}"
-print("ROS matches direct")
-"""
-
-# What the env does around a reset (the init pose, then the first action, with no step in between),
-# as it happens on a loaded machine. rospy's queued publishers (queue_size=N) yield once per publish
-# (time.sleep(0)) so that their send thread takes the message; under load that thread is often not
-# scheduled before the next publish, and queue_size=1 then drops the older message although the
-# caller counted it. Here the send thread is never scheduled between two publishes (no yield, no GIL
-# switch): the race made deterministic. With synchronous publishers (queue_size=None) it cannot
-# happen. Own process = own caller id, so this test node's lockstep counts stay intact.
-BURST = """
-import sys, rospy
-import rospy.impl.tcpros_pubsub as tcpros_pubsub
-from pybullet_sim.client import CommandPublisher, SimConnection
-rospy.init_node("hopper_command_burst")
-sim = SimConnection(timeout=10.0)
-publishers = [CommandPublisher(f"/monoped/{joint}_position_controller/command")
-              for joint in ("haa_joint", "hfe_joint", "kfe_joint")]
-for publisher in publishers:
-    publisher.wait_for_subscriber(10.0)
-
-class NoYield:
-    @staticmethod
-    def sleep(seconds):
-        pass
-
-real_time, tcpros_pubsub.time = tcpros_pubsub.time, NoYield
-sys.setswitchinterval(5.0)
-for target in (0.0, 0.1):  # MonopedEnv: reset -> init pose, then step -> action targets
-    for publisher in publishers:
-        publisher.publish(target)
-tcpros_pubsub.time = real_time
-sys.setswitchinterval(0.005)
-sim.step(1, publishers)
-print("stepped")
-"""
+HERE = os.path.dirname(os.path.abspath(__file__))
 
 
 def run_script(script, timeout):
-    """Run a Python script as its own process (group); returns (returncode, stdout, stderr)."""
-    process = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                               text=True, start_new_session=True)
+    """Run one of this folder's Python scripts as its own process (group) and ROS node; returns
+    (returncode, stdout, stderr)."""
+    process = subprocess.Popen([sys.executable, os.path.join(HERE, script)], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
         stdout, stderr = process.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
         os.killpg(process.pid, signal.SIGKILL)  # the process group started just above
         stdout, stderr = process.communicate()
-        raise AssertionError(f"script did not finish within {timeout} s\n{stdout}\n{stderr}")
+        raise AssertionError(f"script did not finish within {timeout} s\n{stdout}\n{stderr}") from None
     return process.returncode, stdout, stderr
 
 
@@ -281,7 +215,7 @@ class HopperSimTest(unittest.TestCase):
 
     # -- the env over ROS -----------------------------------------------------------------------
     def test_check_env_over_ros_and_same_observations_as_direct(self):
-        returncode, stdout, stderr = run_script(CHECK_ENV, CHECK_ENV_TIMEOUT)
+        returncode, stdout, stderr = run_script("hopper_check_env.py", CHECK_ENV_TIMEOUT)
         self.assertEqual(returncode, 0, f"{stdout}\n{stderr}")
         self.assertEqual(stdout.strip().splitlines()[-2:], ["check_env passed", "ROS matches direct"], stdout)
 
@@ -291,7 +225,7 @@ class HopperSimTest(unittest.TestCase):
         Regression test: with CommandPublisher(queue_size=1) (commit 3028f65, client.py:34) the step
         failed with "commands ... did not arrive within 2.0 s (announced 2, received 1)", which also
         stopped hopper trainings on loaded machines at the first step after a reset."""
-        returncode, stdout, stderr = run_script(BURST, 60.0)
+        returncode, stdout, stderr = run_script("hopper_command_burst.py", 60.0)
         self.assertEqual(returncode, 0, stderr.strip().splitlines()[-1] if stderr.strip() else stdout)
         self.assertEqual(stdout.strip().splitlines()[-1], "stepped")
 

@@ -1,4 +1,4 @@
-"""The cube's Q-learning training end to end over ROS (launch/main.launch on its own master):
+"""The cube's Q-learning training end to end over ROS (moving_cube_training's main.launch on its own master):
 a short run writes every results file, a SIGKILLed run resumes without losing or repeating an
 episode, bad params stop the node with one clear line, and evaluate.py reports as documented."""
 import json
@@ -13,10 +13,12 @@ from pathlib import Path
 import pytest
 import yaml
 
+from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+
 from conftest import REPO, Processes, RosMaster, launch_args
 
-CONFIG = REPO / "config" / "moving_cube_qlearn.yaml"
-HEADER = "episode,steps,return,epsilon,sim_time,wall_time"
+CONFIG = ONE_DISK_WALK.config_path
+HEADER = "episode,steps,return,epsilon,sim_time,wall_time,y_distance,success"
 RESULTS_FILES = ("params.yaml", "episodes.csv", "qtable.json", "learning_curve.png", "summary.json")
 
 
@@ -29,7 +31,7 @@ def write_config(path: Path, **changes) -> Path:
 
 def start_training(master: RosMaster, results: Path, config: Path, log: Path, **args) -> subprocess.Popen:
     with open(log, "w") as out:
-        return master.start(["roslaunch", "launch/main.launch",
+        return master.start(["roslaunch", "moving_cube_training", "main.launch",
                              *launch_args(results_dir=results, config=config, **args)],
                             stdout=out, stderr=subprocess.STDOUT)
 
@@ -70,7 +72,7 @@ def three_episodes(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("three_episodes")
     config = write_config(tmp / "config.yaml", nepisodes=3, nsteps=50)
     results, log = tmp / "results", tmp / "roslaunch.log"
-    master = RosMaster(tmp / "ros")
+    master = RosMaster(tmp / "ros", cwd=REPO)
     try:
         start = time.monotonic()
         code = wait_exit(start_training(master, results, config, log), 180, log)
@@ -102,7 +104,7 @@ def test_two_training_runs_over_ros_with_the_same_seed_write_identical_returns(t
     """Lockstep makes training reproducible: a second run on a fresh master and sim repeats the first."""
     config = write_config(tmp_path / "config.yaml", nepisodes=3, nsteps=50)
     results, log = tmp_path / "results", tmp_path / "roslaunch.log"
-    master = RosMaster(tmp_path / "ros")
+    master = RosMaster(tmp_path / "ros", cwd=REPO)
     try:
         assert wait_exit(start_training(master, results, config, log), 180, log) == 0, log.read_text()[-3000:]
     finally:
@@ -129,7 +131,7 @@ def test_evaluate_prints_one_json_line(three_episodes, tmp_path):
     for result in outputs:
         assert result.returncode == 0, result.stderr
     report = json.loads(outputs[0].stdout.strip().splitlines()[-1])
-    assert report["episodes"] == 2
+    assert (report["task"], report["episodes"], report["horizon_s"]) == ("MovingCubeOneDiskWalk-v0", 2, 60.0)
     for policy in ("greedy", "random"):
         assert set(report[policy]) == {"mean_return", "mean_y_distance", "success_rate"}
         assert all(isinstance(v, float) for v in report[policy].values())
@@ -166,7 +168,7 @@ def test_sigkill_between_checkpoints_then_resume(tmp_path):
         episode = json.loads(qtable.read_text())["episode"]
         return episode >= 10 and len(complete_lines(csv_path)) - 1 > episode
 
-    master = RosMaster(tmp_path / "ros")
+    master = RosMaster(tmp_path / "ros", cwd=REPO)
     try:
         log = tmp_path / "first.log"
         launch = start_training(master, results, config, log)
@@ -188,7 +190,7 @@ def test_sigkill_between_checkpoints_then_resume(tmp_path):
     assert not (run / "summary.json").exists(), "a killed run has no summary"
     checkpointed_bytes = "".join(line + "\n" for line in lines_at_kill[:saved + 1]).encode()
 
-    master = RosMaster(tmp_path / "resume")
+    master = RosMaster(tmp_path / "resume", cwd=REPO)
     try:
         log = tmp_path / "resume.log"
         code = wait_exit(start_training(master, results, config, log, resume="true"), 180, log)
@@ -253,7 +255,7 @@ def test_resume_with_nothing_to_resume_stops_with_one_line(ros_master, tmp_path,
 # -- lockstep with a second backend in one node --------------------------------------------------
 
 def test_a_second_backend_in_one_node_applies_every_command(ros_master):
-    ros_master.start(["roslaunch", "launch/cube_sim.launch", *launch_args(paused="true")],
+    ros_master.start(["roslaunch", "pybullet_sim", "cube_sim.launch", *launch_args(paused="true")],
                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
     def sim_up():

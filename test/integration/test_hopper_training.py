@@ -1,36 +1,23 @@
-"""The hopper's training end to end over ROS (launch/hopper.launch), then evaluate.py on its Q-table."""
+"""The hopper's training end to end over ROS (hopper_training's main.launch), then evaluate.py on its Q-table."""
 import csv
 import json
 import math
 import sys
 import time
+from pathlib import Path
 
 import pytest
 import yaml
 
-from conftest import REPO, launch_args, stop
+from hopper_training.monoped_env import STAY_UP
+
+from conftest import launch_args, stop
+
+RECORDER = Path(__file__).with_name("record_rewards.py")
 
 TRAINING_TIMEOUT = 240.0  # wall s: 3 episodes of at most 100 lockstep steps, plus roslaunch start-up
 EVALUATE_TIMEOUT = 120.0
 NEPISODES, NSTEPS = 3, 100
-
-# Records /monoped/reward and /monoped/episode_reward, one "<topic> <repr(value)>" line per message.
-RECORDER = """
-import sys, threading, rospy
-from std_msgs.msg import Float64
-rospy.init_node("reward_recorder")
-lock = threading.Lock()  # the two subscriptions call back from two threads
-def record(name):
-    def callback(msg):
-        with lock:
-            sys.stdout.write(f"{name} {msg.data!r}\\n")
-            sys.stdout.flush()
-    return callback
-rospy.Subscriber("/monoped/reward", Float64, record("reward"))
-rospy.Subscriber("/monoped/episode_reward", Float64, record("episode_reward"))
-rospy.spin()
-"""
-
 
 def _approx(value):
     return pytest.approx(value, rel=1e-9, abs=1e-12)
@@ -59,7 +46,7 @@ def recorded(path):
 
 
 def test_three_episodes_over_ros_then_evaluate(ros_master, tmp_path):
-    config = yaml.safe_load((REPO / "config/hopper_qlearn.yaml").read_text())
+    config = yaml.safe_load(STAY_UP.config_path.read_text())
     config["nsteps"] = NSTEPS
     config_file = tmp_path / "hopper_qlearn.yaml"
     config_file.write_text(yaml.safe_dump(config))
@@ -67,13 +54,13 @@ def test_three_episodes_over_ros_then_evaluate(ros_master, tmp_path):
 
     record_file = tmp_path / "rewards.txt"
     with open(record_file, "w") as out:
-        recorder = ros_master.start([sys.executable, "-c", RECORDER], stdout=out)
+        recorder = ros_master.start([sys.executable, str(RECORDER)], stdout=out)
     topics = ["/monoped/reward", "/monoped/episode_reward"]
     wait_for(lambda: recorder.poll() is None and subscribed(ros_master, "/reward_recorder", topics), 20.0,
              "the recorder subscribing")
 
     started = time.monotonic()
-    training = ros_master.run(["roslaunch", "launch/hopper.launch", *launch_args(
+    training = ros_master.run(["roslaunch", "hopper_training", "main.launch", *launch_args(
         nepisodes=NEPISODES, results_dir=results, config=config_file)], timeout=TRAINING_TIMEOUT)
     log = training.stdout + training.stderr
     assert training.returncode == 0, log[-4000:]
@@ -85,7 +72,8 @@ def test_three_episodes_over_ros_then_evaluate(ros_master, tmp_path):
     assert run.is_symlink() and run.is_dir()
     with open(run / "episodes.csv", newline="") as f:
         rows = list(csv.reader(f))
-    assert rows[0] == ["episode", "steps", "return", "epsilon", "sim_time", "wall_time"]
+    assert rows[0] == ["episode", "steps", "return", "epsilon", "sim_time", "wall_time", "time_upright_s",
+                       "upright_whole_horizon", "x_distance"]
     episodes = rows[1:]
     assert [int(row[0]) for row in episodes] == [1, 2, 3], log[-4000:]
     steps = [int(row[1]) for row in episodes]
@@ -120,19 +108,19 @@ def test_three_episodes_over_ros_then_evaluate(ros_master, tmp_path):
 
     started = time.monotonic()
     evaluation = ros_master.run(["rosrun", "hopper_training", "evaluate.py", "--qtable", str(run), "--episodes", "2",
-                                "--horizon", "200", "--backend", "direct"], timeout=EVALUATE_TIMEOUT)
+                                "--horizon-s", "0.2"], timeout=EVALUATE_TIMEOUT)
     assert evaluation.returncode == 0, evaluation.stdout[-2000:] + evaluation.stderr[-2000:]
     evaluate_time = time.monotonic() - started
     report = json.loads(evaluation.stdout.strip().splitlines()[-1])
-    assert (report["episodes"], report["horizon_steps"]) == (2, 200)
+    assert (report["task"], report["episodes"], report["horizon_s"]) == ("Monoped-v0", 2, _approx(0.2))
     for policy in ("greedy", "random"):
         result = report[policy]
-        assert set(result) == {"mean_return", "mean_episode_steps", "fall_rate"}
+        assert set(result) == {"mean_return", "mean_time_upright_s", "upright_whole_horizon_rate", "mean_x_distance"}
         assert all(isinstance(v, float) and math.isfinite(v) for v in result.values())
-        assert 1.0 <= result["mean_episode_steps"] <= 200.0
-        assert result["fall_rate"] in (0.0, 0.5, 1.0)
-        if result["fall_rate"] == 0.0:  # episodes end by a fall or at the horizon
-            assert result["mean_episode_steps"] == 200.0
+        assert 0.0 < result["mean_time_upright_s"] <= 0.2 + 1e-9
+        assert result["upright_whole_horizon_rate"] in (0.0, 0.5, 1.0)
+        if result["upright_whole_horizon_rate"] == 1.0:  # episodes end by a fall or at the horizon
+            assert result["mean_time_upright_s"] == _approx(0.2)
         # each step earns at most alive_reward; a fall gives done_reward
-        assert result["mean_return"] <= 100.0 * result["mean_episode_steps"]
+        assert result["mean_return"] <= 100.0 * result["mean_time_upright_s"] / 0.001
     print(f"training {training_time:.1f} s, evaluate {evaluate_time:.1f} s")

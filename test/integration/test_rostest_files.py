@@ -10,7 +10,7 @@ TEST_FILES = sorted(Path(__file__).parent.glob("*.test"))
 
 @pytest.mark.parametrize("test_file", TEST_FILES, ids=[f.stem for f in TEST_FILES])
 def test_rostest(test_file, tmp_path):
-    runner = Processes(tmp_path)
+    runner = Processes(tmp_path, cwd=REPO)
     try:
         result = runner.run(["rostest", str(test_file.relative_to(REPO))], timeout=600)
     finally:

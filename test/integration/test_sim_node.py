@@ -5,14 +5,17 @@ from pathlib import Path
 import pytest
 import yaml
 
+from moving_cube_training.one_disk_walk import MOVING_CUBE
+
 from conftest import REPO, RosMaster, launch_args
 
-CUBE_URDF = (REPO / "moving_cube_description/urdf/moving_cube.urdf").read_text()
-CUBE_SIM = yaml.safe_load((REPO / "config/moving_cube_sim.yaml").read_text())
+CUBE_URDF = MOVING_CUBE.urdf_path.read_text()
+CUBE_SIM = yaml.safe_load(MOVING_CUBE.sim_config_path.read_text())
 
 
 def record_odom(master: RosMaster, seed: int) -> list:
-    master.start(["roslaunch", "launch/cube_sim.launch", *launch_args(paused="true", real_time_factor=0, seed=seed)])
+    master.start(["roslaunch", "pybullet_sim", "cube_sim.launch",
+                  *launch_args(paused="true", real_time_factor=0, seed=seed)])
     result = master.run(["python", str(Path(__file__).with_name("record_odom.py")), "100"], timeout=120)
     assert result.returncode == 0, result.stderr
     return json.loads(result.stdout.strip().splitlines()[-1])
@@ -21,7 +24,7 @@ def record_odom(master: RosMaster, seed: int) -> list:
 def test_two_runs_with_the_same_seed_give_identical_odom_streams(tmp_path):
     streams = []
     for run, seed in enumerate((7, 7, 8)):
-        master = RosMaster(tmp_path / f"run{run}")
+        master = RosMaster(tmp_path / f"run{run}", cwd=REPO)
         try:
             streams.append(record_odom(master, seed))
         finally:

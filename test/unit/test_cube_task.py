@@ -3,22 +3,30 @@
 No ROS master and no physics: a fake Backend hands the env the readings each test writes, and
 records the wheel commands the env sends.
 """
+import dataclasses
 import math
 
 import gymnasium
 import numpy as np
 import pytest
+import yaml
 from tf.transformations import quaternion_from_euler
 
-import moving_cube_training
-from moving_cube_training.one_disk_walk import MovingCubeOneDiskWalkEnv, ODOMETRY_SENSOR, WHEEL_CONTROLLER
-from moving_cube_training.params import load_default_params, validate_params
+from moving_cube_training.one_disk_walk import (
+    MOVING_CUBE,
+    ODOMETRY_SENSOR,
+    ONE_DISK_WALK,
+    WHEEL_CONTROLLER,
+    MovingCubeOneDiskWalkEnv,
+)
+from moving_cube_training.params import CubeParams
 from moving_cube_training.state import CubeStateKey
 from pybullet_sim.readings import JointStateReading, OdometryReading
-from robot_rl.backends import Backend, Readings
-from robot_rl.params import ParamError
+from robot_rl.backends import Readings
+from robot_rl.params import ParamError, Point
+from robot_rl.task import make_env as make_task_env
 
-TIME_STEP = 0.001
+from fake_backend import FakeBackend
 
 
 def readings(stamp=0.0, y=0.0, roll=0.0, pitch=0.0, yaw=0.0, v_y=0.0, wheel=0.0):
@@ -30,37 +38,12 @@ def readings(stamp=0.0, y=0.0, roll=0.0, pitch=0.0, yaw=0.0, v_y=0.0, wheel=0.0)
     return Readings(joints, {ODOMETRY_SENSOR: odom})
 
 
-class FakeBackend(Backend):
-    """Returns `at_reset` on reset and the next of `script` on each step; records every call."""
-
-    time_step = TIME_STEP
-
-    def __init__(self, at_reset=None, script=()):
-        self.at_reset = at_reset or readings()
-        self.script = list(script)
-        self.commands = []   # (controller, value) in call order
-        self.steps = []      # physics_steps of each step call
-        self.resets = []     # restart_time of each reset call
-
-    def reset(self, restart_time=False):
-        self.resets.append(restart_time)
-        return self.at_reset
-
-    def set_command(self, controller, value):
-        self.commands.append((controller, value))
-
-    def step(self, physics_steps):
-        self.steps.append(physics_steps)
-        if self.script:
-            return self.script.pop(0)
-        return readings(stamp=TIME_STEP * sum(self.steps))
+def fake(at_reset=None, script=()):
+    return FakeBackend(at_reset or readings(), script)
 
 
 def params(**overrides):
-    values = load_default_params()
-    values["reset_settle_time"] = 0.0
-    values.update(overrides)
-    return values
+    return dataclasses.replace(ONE_DISK_WALK.default_params(), **{"reset_settle_time": 0.0, **overrides})
 
 
 def make_env(backend, **overrides):
@@ -70,14 +53,14 @@ def make_env(backend, **overrides):
 # -- reward, termination, truncation --------------------------------------------------------------
 
 def expected_reward(p, dy, v_y, yaw):
-    return (dy * p["move_distance_reward_weight"] + v_y * p["y_linear_speed_reward_weight"]
-            - abs(math.sin(yaw)) * p["y_axis_angle_reward_weight"])
+    return (dy * p.move_distance_reward_weight + v_y * p.y_linear_speed_reward_weight
+            - abs(math.sin(yaw)) * p.y_axis_angle_reward_weight)
 
 
 def test_reward_is_progress_plus_speed_minus_heading_error():
     p = params(move_distance_reward_weight=1000.0, y_linear_speed_reward_weight=200.0,
                y_axis_angle_reward_weight=50.0)
-    backend = FakeBackend(at_reset=readings(y=0.25), script=[
+    backend = fake(at_reset=readings(y=0.25), script=[
         readings(stamp=0.06, y=0.30, v_y=0.4, yaw=0.05),
         readings(stamp=0.12, y=0.28, v_y=-0.1, yaw=-0.02),
     ])
@@ -98,18 +81,18 @@ def test_reward_is_progress_plus_speed_minus_heading_error():
 
 def test_reward_is_relative_to_init_cube_pose_consistently():
     """init_cube_pose/y shifts the observation, not the progress reward."""
-    p = params(**{"init_cube_pose/y": 1.0})
-    backend = FakeBackend(at_reset=readings(y=1.1), script=[readings(stamp=0.06, y=1.15)])
+    p = params(init_cube_pose=Point(x=0.0, y=1.0, z=0.0))
+    backend = fake(at_reset=readings(y=1.1), script=[readings(stamp=0.06, y=1.15)])
     env = MovingCubeOneDiskWalkEnv(backend=backend, params=p)
     observation, _ = env.reset()
     assert observation[1] == pytest.approx(0.1)
     observation, reward, _, _, _ = env.step(2)
     assert observation[1] == pytest.approx(0.15)
-    assert reward == pytest.approx(0.05 * p["move_distance_reward_weight"], abs=1e-3)
+    assert reward == pytest.approx(0.05 * p.move_distance_reward_weight, abs=1e-3)
 
 
 def test_each_reset_restarts_the_progress_reference():
-    backend = FakeBackend(at_reset=readings(y=0.0), script=[readings(stamp=0.06, y=0.5)])
+    backend = fake(at_reset=readings(y=0.0), script=[readings(stamp=0.06, y=0.5)])
     env = make_env(backend)
     env.reset()
     env.step(2)
@@ -117,7 +100,7 @@ def test_each_reset_restarts_the_progress_reference():
     backend.script = [readings(stamp=0.06, y=0.41)]
     env.reset()
     _, reward, _, _, info = env.step(2)
-    assert reward == pytest.approx(0.01 * env.params["move_distance_reward_weight"], abs=1e-3)
+    assert reward == pytest.approx(0.01 * env.params.move_distance_reward_weight, abs=1e-3)
     assert info["y_travelled"] == pytest.approx(0.01)
 
 
@@ -126,11 +109,11 @@ def test_each_reset_restarts_the_progress_reference():
 ], ids=["pitch+", "pitch-", "yaw+", "yaw-", "pitch_just_over"])
 def test_tipping_or_turning_away_ends_the_episode_with_the_penalty(angles):
     # Lots of progress in the same step: the fall penalty replaces the shaped reward.
-    backend = FakeBackend(script=[readings(stamp=0.06, y=0.3, v_y=1.0, **angles)])
+    backend = fake(script=[readings(stamp=0.06, y=0.3, v_y=1.0, **angles)])
     env = make_env(backend)
     env.reset()
     _, reward, terminated, truncated, info = env.step(0)
-    assert reward == -env.params["end_episode_points"] == -1000.0
+    assert reward == -env.params.end_episode_points == -1000.0
     assert (terminated, truncated, info["fell"]) == (True, False, True)
 
 
@@ -138,7 +121,7 @@ def test_tipping_or_turning_away_ends_the_episode_with_the_penalty(angles):
     {"pitch": 0.19}, {"pitch": -0.19}, {"yaw": 0.09}, {"yaw": -0.09}, {"pitch": 0.19, "yaw": 0.09},
 ], ids=["pitch+", "pitch-", "yaw+", "yaw-", "both"])
 def test_just_under_the_limits_is_not_a_fall(angles):
-    backend = FakeBackend(script=[readings(stamp=0.06, **angles)])
+    backend = fake(script=[readings(stamp=0.06, **angles)])
     env = make_env(backend)
     env.reset()
     _, reward, terminated, truncated, info = env.step(2)
@@ -147,8 +130,8 @@ def test_just_under_the_limits_is_not_a_fall(angles):
 
 
 def test_truncated_not_terminated_after_nsteps():
-    backend = FakeBackend()
-    env = make_env(backend, nsteps=3)
+    backend = fake()
+    env = make_task_env(ONE_DISK_WALK, params=params(nsteps=3), backend=backend)
     env.reset()
     flags = [env.step(2)[2:4] for _ in range(3)]
     assert flags == [(False, False), (False, False), (False, True)]
@@ -156,16 +139,17 @@ def test_truncated_not_terminated_after_nsteps():
     assert env.step(2)[2:4] == (False, False), "reset starts the step count again"
 
 
-def test_a_fall_on_the_last_step_is_terminated_not_truncated():
-    backend = FakeBackend(script=[readings(stamp=0.06), readings(stamp=0.12, pitch=0.5)])
-    env = make_env(backend, nsteps=2)
+def test_a_fall_on_the_last_step_is_terminated():
+    """gymnasium's TimeLimit also reports truncated then; terminated is what stops bootstrapping."""
+    backend = fake(script=[readings(stamp=0.06), readings(stamp=0.12, pitch=0.5)])
+    env = make_task_env(ONE_DISK_WALK, params=params(nsteps=2), backend=backend)
     env.reset()
     env.step(2)
-    assert env.step(2)[2:4] == (True, False)
+    assert env.step(2)[2] is True
 
 
 def test_each_step_advances_running_step_of_sim_time():
-    backend = FakeBackend()
+    backend = fake()
     env = make_env(backend, running_step=0.06)
     env.reset()
     env.step(2)
@@ -174,7 +158,7 @@ def test_each_step_advances_running_step_of_sim_time():
 
 
 def test_settle_time_is_one_step_with_the_reset_command_before_the_first_observation():
-    backend = FakeBackend(at_reset=readings(y=5.0), script=[readings(stamp=0.3, y=0.2, wheel=3.0)])
+    backend = fake(at_reset=readings(y=5.0), script=[readings(stamp=0.3, y=0.2, wheel=3.0)])
     env = make_env(backend, reset_settle_time=0.3, init_roll_vel=7.0)
     observation, info = env.reset()
     assert backend.steps == [300]
@@ -184,7 +168,7 @@ def test_settle_time_is_one_step_with_the_reset_command_before_the_first_observa
 
 
 def test_seeded_reset_restarts_sim_time_and_unseeded_does_not():
-    backend = FakeBackend()
+    backend = fake()
     env = make_env(backend)
     env.reset(seed=3)
     env.reset()
@@ -194,7 +178,7 @@ def test_seeded_reset_restarts_sim_time_and_unseeded_does_not():
 # -- actions -------------------------------------------------------------------------------------
 
 def wheel_commands(actions, **overrides):
-    backend = FakeBackend()
+    backend = fake()
     env = make_env(backend, **overrides)
     env.reset()
     for action in actions:
@@ -227,10 +211,10 @@ def test_numpy_integer_actions_are_accepted():
 # -- observation ---------------------------------------------------------------------------------
 
 def test_observation_order_dtype_and_bounds():
-    backend = FakeBackend(at_reset=readings(y=0.7, wheel=12.5, roll=0.3, pitch=-0.1, yaw=0.05, v_y=0.25),
+    backend = fake(at_reset=readings(y=0.7, wheel=12.5, roll=0.3, pitch=-0.1, yaw=0.05, v_y=0.25),
                           script=[readings(stamp=0.06, y=0.9, wheel=-40.0, roll=-1.2, pitch=0.15, yaw=-0.07,
                                            v_y=-0.5)])
-    env = make_env(backend, **{"init_cube_pose/y": 0.5})
+    env = make_env(backend, init_cube_pose=Point(x=0.0, y=0.5, z=0.0))
     observation, _ = env.reset()
     assert observation.dtype == np.float32 and observation.shape == (6,)
     assert env.observation_space.contains(observation)
@@ -242,7 +226,7 @@ def test_observation_order_dtype_and_bounds():
 
 
 def test_observation_stays_inside_the_space_at_the_extremes():
-    backend = FakeBackend(at_reset=readings(wheel=5000.0, roll=math.pi, yaw=-math.pi, pitch=math.pi / 2 - 1e-9))
+    backend = fake(at_reset=readings(wheel=5000.0, roll=math.pi, yaw=-math.pi, pitch=math.pi / 2 - 1e-9))
     env = make_env(backend, max_pitch_angle=10.0, max_yaw_angle=10.0)
     observation, _ = env.reset()
     assert observation[0] == 1000.0, "wheel speed is clipped to the URDF limit"
@@ -252,14 +236,14 @@ def test_observation_stays_inside_the_space_at_the_extremes():
 # -- API misuse ----------------------------------------------------------------------------------
 
 def test_step_before_reset_raises():
-    env = make_env(FakeBackend())
+    env = make_env(fake())
     with pytest.raises(gymnasium.error.ResetNeeded):
         env.step(0)
 
 
 @pytest.mark.parametrize("action", [5, -1, 2.5, "0"])
 def test_action_outside_the_space_raises_value_error(action):
-    backend = FakeBackend()
+    backend = fake()
     env = make_env(backend)
     env.reset()
     with pytest.raises(ValueError):
@@ -267,14 +251,20 @@ def test_action_outside_the_space_raises_value_error(action):
     assert backend.steps == [], "an invalid action must not advance the sim"
 
 
-def test_registered_env_uses_this_class():
-    spec = gymnasium.spec(moving_cube_training.ENV_ID)
+def test_registered_env_uses_this_class_with_the_yaml_nsteps_as_its_time_limit():
+    spec = gymnasium.spec(ONE_DISK_WALK.env_id)
     assert spec.entry_point == "moving_cube_training.one_disk_walk:MovingCubeOneDiskWalkEnv"
+    assert spec.max_episode_steps == ONE_DISK_WALK.max_episode_steps == ONE_DISK_WALK.default_params().nsteps
 
 
 def test_unknown_backend_name_raises():
     with pytest.raises(ValueError, match="backend"):
         MovingCubeOneDiskWalkEnv(backend="gazebo", params=params())
+
+
+def test_params_of_another_task_are_refused():
+    with pytest.raises(TypeError, match="CubeParams"):
+        MovingCubeOneDiskWalkEnv(backend=fake(), params=object())
 
 
 # -- CubeStateKey --------------------------------------------------------------------------------
@@ -285,7 +275,7 @@ def obs(wheel=0.0, y=0.0, roll=0.0, pitch=0.0, v_y=0.0, yaw=0.0):
 
 @pytest.fixture
 def key():
-    return CubeStateKey(load_default_params())
+    return CubeStateKey(ONE_DISK_WALK.default_params())
 
 
 def test_cube_at_rest(key):
@@ -336,22 +326,24 @@ def test_nan_raises(key, dimension):
 
 # -- params --------------------------------------------------------------------------------------
 
-def test_default_params_load_and_are_typed():
-    p = load_default_params()
-    assert p["alpha"] == 0.1 and p["nsteps"] == 1000 and p["n_actions"] == 5
-    assert isinstance(p["end_episode_points"], float) and isinstance(p["nepisodes"], int)
-    assert p["init_cube_pose/y"] == 0.0
+def test_default_params_load_typed_from_the_task_yaml():
+    p = ONE_DISK_WALK.default_params()
+    assert isinstance(p, CubeParams)
+    assert (p.alpha, p.nsteps, p.n_actions, p.running_step) == (0.1, 1000, 5, 0.06)
+    assert isinstance(p.end_episode_points, float) and isinstance(p.nepisodes, int)
+    assert p.init_cube_pose == Point(x=0.0, y=0.0, z=0.0)
+    assert ONE_DISK_WALK.config_path.parent.parent.name == "moving_cube_training"
 
 
-def test_nested_rosparam_form_validates_like_the_file():
-    import yaml
-    from moving_cube_training.params import DEFAULT_CONFIG
-    nested = yaml.safe_load(DEFAULT_CONFIG.read_text())["moving_cube"]
-    assert validate_params(nested, "rosparam") == load_default_params()
+def test_rosparam_form_validates_like_the_file_and_round_trips():
+    document = yaml.safe_load(ONE_DISK_WALK.config_path.read_text())
+    p = CubeParams.from_mapping(document["moving_cube"], "rosparam")
+    assert p == ONE_DISK_WALK.default_params()
+    assert CubeParams.from_mapping(p.to_mapping(), "params.yaml") == p
 
 
 def bad(**changes):
-    values = load_default_params()
+    values = ONE_DISK_WALK.default_params().to_mapping()
     for k, v in changes.items():
         if v is None:
             del values[k]
@@ -368,12 +360,20 @@ def bad(**changes):
     (bad(nepisodes=0), "nepisodes"),
     (bad(nsteps=0), "nsteps"),
     (bad(epsilon_discount=2), "epsilon_discount"),
+    (bad(n_actions=3), "n_actions"),
+    (bad(init_cube_pose={"x": 0.0, "y": 0.0}), "init_cube_pose/z"),
+    (bad(init_cube_pose=0.0), "init_cube_pose"),
 ], ids=["missing_alpha", "alpha_1.5", "gamma_negative", "epsilon_str", "nepisodes_0", "nsteps_0",
-        "epsilon_discount_2"])
+        "epsilon_discount_2", "n_actions_3", "pose_without_z", "pose_not_a_mapping"])
 def test_bad_params_give_one_line_naming_key_and_source(values, name):
     with pytest.raises(ParamError) as info:
-        validate_params(values, "file.yaml")
+        CubeParams.from_mapping(values, "file.yaml")
     message = str(info.value)
     assert "\n" not in message
     assert message.startswith("file.yaml: ")
     assert f"'{name}'" in message
+
+
+def test_the_robot_resources_resolve_through_ros_package_paths():
+    assert MOVING_CUBE.urdf_path.is_file() and MOVING_CUBE.urdf_path.parent.parent.name == "moving_cube_description"
+    assert MOVING_CUBE.sim_config_path.is_file()

@@ -1,25 +1,25 @@
-"""Unit tests for the monoped hopper (no ROS master): MonopedState's rewards, done and state key on
-hand-made readings, action clamping, the hopper's params, and Monoped-v0 on a fake and the direct backend."""
+"""Unit tests for the monoped's tasks (no ROS master): Monoped-v0's reward terms, termination, observation,
+state key and actions on hand-made readings, the params, and both tasks on the direct backend."""
+import dataclasses
 import math
+import xml.etree.ElementTree as ElementTree
 
 import gymnasium
 import numpy as np
 import pytest
-import yaml
-from gymnasium.utils.env_checker import check_env
 from tf.transformations import euler_from_quaternion, quaternion_from_euler
 
-import hopper_training
-from hopper_training.monoped_env import SIM_CONFIG, URDF, MonopedEnv
-from hopper_training.monoped_state import MonopedState
-from hopper_training.params import DEFAULT_CONFIG, load_default_params, validate_params
+from hopper_training.hop import HOP, HopParams, MonopedHopEnv
+from hopper_training.monoped_env import CONTROLLERS, JOINT_LIMITS, JOINTS, MONOPED, STAY_UP, MonopedEnv
+from hopper_training.params import MonopedParams
+from hopper_training.state import TutorialStateKey
 from pybullet_sim.readings import ContactPoint, ContactReading, ImuReading, JointStateReading, OdometryReading
-from robot_rl.backends import Backend, DirectBackend, Readings
-from robot_rl.params import ParamError
+from robot_rl.backends import DirectBackend, Readings
+from robot_rl.params import ParamError, Point
 
-JOINT_NAMES = ("haa_joint", "hfe_joint", "kfe_joint")
-CONTROLLERS = ("haa_joint_position_controller", "hfe_joint_position_controller", "kfe_joint_position_controller")
-# config/hopper_qlearn.yaml (the tutorial's qlearn_params.yaml)
+from fake_backend import FakeBackend
+
+# config/stay_up.yaml (the tutorial's qlearn_params.yaml)
 ALIVE, DONE, DESIRED_FORCE = 100.0, -1000.0, 7.08
 
 
@@ -30,12 +30,14 @@ def foot_contact(force=(0.0, 0.0, 7.08)):
 
 
 def readings(position=(0.0, 0.0, 1.0), rpy=(0.0, 0.0, 0.0), joints=(0.0, 0.0, 0.0), effort=(0.0, 0.0, 0.0),
-             total_force=(0.0, 0.0, 0.0), contacts=None, odom_rpy=(0.0, 0.0, 0.0), stamp=0.0):
+             total_force=(0.0, 0.0, 0.0), contacts=None, odom_rpy=(0.0, 0.0, 0.0), stamp=0.0, names=JOINTS):
     """Hand-made Readings as the sim publishes them; `contacts` None = one contact iff total_force != 0."""
     if contacts is None:
         contacts = (foot_contact(total_force),) if any(total_force) else ()
+    order = [JOINTS.index(name) for name in names]
     return Readings(
-        JointStateReading(stamp, JOINT_NAMES, tuple(joints), (0.0, 0.0, 0.0), tuple(effort)),
+        JointStateReading(stamp, tuple(names), tuple(joints[i] for i in order), (0.0, 0.0, 0.0),
+                          tuple(effort[i] for i in order)),
         {"p3d_base_controller": OdometryReading(stamp, "world", "base", tuple(position),
                                                 tuple(quaternion_from_euler(*odom_rpy)), (0.0,) * 3, (0.0,) * 3),
          "gazebo_ros_imu_controller": ImuReading(stamp, "base", tuple(quaternion_from_euler(*rpy)),
@@ -44,12 +46,25 @@ def readings(position=(0.0, 0.0, 1.0), rpy=(0.0, 0.0, 0.0), joints=(0.0, 0.0, 0.
                                                          tuple(total_force), (0.0, 0.0, 0.0))})
 
 
-def state_for(r, **overrides):
-    params = load_default_params()
-    params.update(overrides)
-    state = MonopedState.from_params(params)
-    state.update(r)
-    return state
+def params(task=STAY_UP, **overrides):
+    return dataclasses.replace(task.default_params(), **overrides)
+
+
+def env_on(r, env_class=MonopedEnv, **overrides):
+    """An env whose robot always reads `r`, reset."""
+    env = env_class(backend=FakeBackend(r), params=params(env_class.task, **overrides))
+    env.reset()
+    return env
+
+
+def step_on(r, action=0, **overrides):
+    """(reward, terminated, info) of one step of an env whose robot always reads `r`."""
+    _, reward, terminated, _, info = env_on(r, **overrides).step(action)
+    return reward, terminated, info
+
+
+def terms(info):
+    return {key[len("reward_"):]: value for key, value in info.items() if key.startswith("reward_")}
 
 
 # -- rewards --------------------------------------------------------------------------------------
@@ -59,68 +74,67 @@ LEANING = dict(position=(0.3, 0.4, 1.0), rpy=(0.1, -0.2, 0.3), joints=(0.1, -0.2
 
 
 def test_each_reward_term_with_the_yaml_weights():
-    state = state_for(readings(**LEANING))
-    assert state.calculate_reward_joint_position() == pytest.approx(0.1 + 0.2 + 0.3)   # w1 = 1
-    assert state.calculate_reward_joint_effort() == 0.0                                # w2 = 0
-    assert state.calculate_reward_contact_force() == pytest.approx(abs(5.0 - 7.08))    # w3 = 1
-    assert state.calculate_reward_orientation() == pytest.approx(0.1 + 0.2 + 0.3)      # w4 = 1
-    assert state.calculate_reward_distance_from_des_point() == pytest.approx(0.5)      # w5 = 1, to (0, 0, 1)
-    expected = ALIVE - (0.6 + 0.0 + 2.08 + 0.6 + 0.5)
-    assert state.calculate_total_reward() == pytest.approx(expected)
-    assert state.process_data() == (pytest.approx(expected), False)
+    reward, terminated, info = step_on(readings(**LEANING))
+    assert not terminated
+    assert terms(info) == pytest.approx({
+        "alive": ALIVE,
+        "joint_position": -(0.1 + 0.2 + 0.3),        # w1 = 1
+        "joint_effort": 0.0,                         # w2 = 0
+        "contact_force": -abs(5.0 - 7.08),           # w3 = 1
+        "orientation": -(0.1 + 0.2 + 0.3),           # w4 = 1
+        "distance": -0.5})                           # w5 = 1, to (0, 0, 1)
+    assert reward == pytest.approx(ALIVE - (0.6 + 0.0 + 2.08 + 0.6 + 0.5))
 
 
 def test_effort_term_counts_with_weight_r2_one():
-    state = state_for(readings(**LEANING), weight_r2=1.0)
-    assert state.calculate_reward_joint_effort() == pytest.approx(1.0 + 2.0 + 3.0)
-    assert state.calculate_total_reward() == pytest.approx(ALIVE - (0.6 + 6.0 + 2.08 + 0.6 + 0.5))
+    reward, _, info = step_on(readings(**LEANING), weight_r2=1.0)
+    assert info["reward_joint_effort"] == pytest.approx(-(1.0 + 2.0 + 3.0))
+    assert reward == pytest.approx(ALIVE - (0.6 + 6.0 + 2.08 + 0.6 + 0.5))
 
 
 def test_weights_multiply_their_own_term():
-    state = state_for(readings(**LEANING), weight_r1=2.0, weight_r2=0.5, weight_r3=3.0, weight_r4=4.0,
-                      weight_r5=5.0, alive_reward=10.0)
-    terms = [2.0 * 0.6, 0.5 * 6.0, 3.0 * 2.08, 4.0 * 0.6, 5.0 * 0.5]
-    assert [state.calculate_reward_joint_position(), state.calculate_reward_joint_effort(),
-            state.calculate_reward_contact_force(), state.calculate_reward_orientation(),
-            state.calculate_reward_distance_from_des_point()] == pytest.approx(terms)
-    assert state.calculate_total_reward() == pytest.approx(10.0 - sum(terms))
+    reward, _, info = step_on(readings(**LEANING), weight_r1=2.0, weight_r2=0.5, weight_r3=3.0, weight_r4=4.0,
+                              weight_r5=5.0, alive_reward=10.0)
+    expected = {"alive": 10.0, "joint_position": -2.0 * 0.6, "joint_effort": -0.5 * 6.0,
+                "contact_force": -3.0 * 2.08, "orientation": -4.0 * 0.6, "distance": -5.0 * 0.5}
+    assert terms(info) == pytest.approx(expected)
+    assert reward == pytest.approx(sum(expected.values()))
 
 
 def test_orientation_term_uses_desired_yaw_and_absolute_values():
-    state = state_for(readings(rpy=(-0.1, 0.2, 0.3)), desired_yaw=0.5)
-    assert state.calculate_reward_orientation() == pytest.approx(0.1 + 0.2 + abs(0.3 - 0.5))
+    _, _, info = step_on(readings(rpy=(-0.1, 0.2, 0.3)), desired_yaw=0.5)
+    assert info["reward_orientation"] == pytest.approx(-(0.1 + 0.2 + abs(0.3 - 0.5)))
 
 
 def test_orientation_comes_from_the_imu_not_the_odometry():
-    state = state_for(readings(rpy=(0.1, 0.0, 0.0), odom_rpy=(0.0, 0.5, 0.0)))
-    assert state.get_base_rpy() == pytest.approx((0.1, 0.0, 0.0))
+    env = env_on(readings(rpy=(0.1, 0.0, 0.0), odom_rpy=(0.0, 0.5, 0.0)))
+    observation, *_ = env.step(0)
+    assert observation[1:4] == pytest.approx((0.1, 0.0, 0.0), abs=1e-6)
 
 
 def test_distance_to_a_moved_desired_point():
-    state = state_for(readings(position=(1.0, 2.0, 3.0)), **{"desired_pose/x": 1.0, "desired_pose/y": -1.0,
-                                                              "desired_pose/z": 7.0})
-    assert state.calculate_reward_distance_from_des_point() == pytest.approx(5.0)
+    _, _, info = step_on(readings(position=(1.0, 2.0, 2.0)), desired_pose=Point(x=1.0, y=-1.0, z=6.0))
+    assert info["reward_distance"] == pytest.approx(-5.0)
 
 
 def test_upright_robot_at_the_desired_point_in_the_air():
-    """Only r3 remains: no contact means force 0, |0 - desired_force|."""
-    state = state_for(readings())
-    assert state.process_data() == (pytest.approx(ALIVE - DESIRED_FORCE), False)
+    """Only the contact term remains: no contact means force 0, |0 - desired_force|."""
+    reward, terminated, _ = step_on(readings())
+    assert (reward, terminated) == (pytest.approx(ALIVE - DESIRED_FORCE), False)
 
 
 def test_contact_force_is_zero_without_contacts_even_if_total_force_is_not():
-    state = state_for(readings(total_force=(1.0, 2.0, 3.0), contacts=()))
-    assert state.get_contact_force_magnitude() == 0.0
-    assert state.calculate_reward_contact_force() == pytest.approx(DESIRED_FORCE)
-    with_contact = state_for(readings(total_force=(1.0, 2.0, 2.0)))
-    assert with_contact.get_contact_force_magnitude() == pytest.approx(3.0)
+    env = env_on(readings(total_force=(1.0, 2.0, 3.0), contacts=()))
+    observation, _, _, _, info = env.step(0)
+    assert observation[4] == 0.0 and info["reward_contact_force"] == pytest.approx(-DESIRED_FORCE)
+    observation, *_ = env_on(readings(total_force=(1.0, 2.0, 2.0))).step(0)
+    assert observation[4] == pytest.approx(3.0)
 
 
 def test_contact_force_is_the_magnitude_of_total_force_in_any_direction():
     """The sim reports total_wrench in the foot's frame (its x points down): only |F| counts."""
-    state = state_for(readings(total_force=(-7.08, 0.0, 0.0)))
-    assert state.get_contact_force_magnitude() == pytest.approx(7.08)
-    assert state.calculate_reward_contact_force() == pytest.approx(0.0)
+    _, _, info = step_on(readings(total_force=(-7.08, 0.0, 0.0)))
+    assert info["reward_contact_force"] == pytest.approx(0.0)
 
 
 # -- done -----------------------------------------------------------------------------------------
@@ -130,12 +144,12 @@ def test_contact_force_is_the_magnitude_of_total_force_in_any_direction():
     (-0.2, True),
 ])
 def test_height_limits(height, done):
-    state = state_for(readings(position=(0.0, 0.0, height)))
-    reward, is_done = state.process_data()
-    assert is_done is done
-    assert reward == (DONE if done else pytest.approx(state.calculate_total_reward()))
-    if not done:
-        assert reward > DONE
+    reward, terminated, info = step_on(readings(position=(0.0, 0.0, height)))
+    assert terminated is done and info["fell"] is done and info["base_height"] == height
+    if done:
+        assert reward == DONE and terms(info) == {"fall": DONE}
+    else:
+        assert reward > DONE and "reward_fall" not in info
 
 
 @pytest.mark.parametrize("axis", [0, 1])
@@ -146,10 +160,9 @@ def test_inclination_limit_is_exclusive(axis, sign):
     rpy[axis] = sign * 1.5
     r = readings(rpy=rpy)
     angle = abs(euler_from_quaternion(r.sensors["gazebo_ros_imu_controller"].orientation)[axis])
-    assert state_for(r, max_incl=angle).process_data() == (DONE, True)
-    inside = state_for(r, max_incl=float(np.nextafter(angle, math.inf)))
-    reward, done = inside.process_data()
-    assert not done and reward == pytest.approx(inside.calculate_total_reward())
+    assert step_on(r, max_incl=angle)[:2] == (DONE, True)
+    reward, terminated, _ = step_on(r, max_incl=float(np.nextafter(angle, math.inf)))
+    assert not terminated and reward > DONE
 
 
 @pytest.mark.parametrize("rpy, done", [
@@ -158,23 +171,26 @@ def test_inclination_limit_is_exclusive(axis, sign):
     ((0.0, 0.0, 3.0), False),  # yaw never ends an episode
 ])
 def test_inclination_with_the_yaml_max_incl(rpy, done):
-    assert state_for(readings(rpy=rpy)).process_data()[1] is done
+    assert step_on(readings(rpy=rpy))[1] is done
 
 
-# -- observations and the state key ---------------------------------------------------------------
+# -- observations and the tutorial's state key ----------------------------------------------------
 def test_observations_in_the_tutorial_order():
-    state = state_for(readings(**LEANING))
-    obs = state.get_observations()
-    assert obs.dtype == np.float32 and obs.shape == (8,)
+    observation, *_ = env_on(readings(**LEANING)).step(0)
+    assert observation.dtype == np.float32 and observation.shape == (8,)
     # distance, roll, pitch, yaw, contact force, haa, hfe, kfe
-    assert obs.tolist() == pytest.approx([0.5, 0.1, -0.2, 0.3, 5.0, 0.1, -0.2, -0.3], abs=1e-6)
+    assert observation.tolist() == pytest.approx([0.5, 0.1, -0.2, 0.3, 5.0, 0.1, -0.2, -0.3], abs=1e-6)
+
+
+def tutorial_key(obs, **overrides):
+    return TutorialStateKey(params(**overrides)).key(np.array(obs, dtype=float))
 
 
 def test_state_key_of_the_upright_robot_at_rest_in_the_air():
     """The tutorial's "5.05.05.05.01.05.05.010.0": force 0 sits on the first edge (bin 1), kfe 0 on
     the last (bin 10)."""
-    state = state_for(readings())
-    assert state.get_state_as_string(state.get_observations()) == "5_5_5_5_1_5_5_10"
+    observation, _ = MonopedEnv(backend=FakeBackend(readings()), params=params()).reset()
+    assert tutorial_key(observation) == "5_5_5_5_1_5_5_10"
 
 
 # Edges numpy.linspace(min, max, 10) with the ranges of original_interfaces.md B3:
@@ -193,27 +209,35 @@ def test_state_key_of_the_upright_robot_at_rest_in_the_air():
     ([-2.5, -1.57, -1.57, -2 * math.pi, 0.0, -1.6, -1.6, -1.6], "1_1_1_1_1_1_1_1"),
 ])
 def test_state_key_hand_computed(obs, key):
-    state = state_for(readings())
-    assert state.get_state_as_string(np.array(obs, dtype=float)) == key
+    assert tutorial_key(obs) == key
 
 
 def test_state_key_bins_come_from_the_params():
     """max_height - min_height, max_incl and desired_force set the bin ranges."""
-    state = state_for(readings(), max_height=2.0, min_height=1.0, max_incl=1.0, desired_force=10.0)
     # distance 0.95 in [-1, 1]: edges step 2/9, 0.95 >= 0.778 -> 9; roll 0.9 >= 0.778 -> 9;
     # pitch -0.95 in [-1, -0.778) -> 1; force 19.9 in [17.78, 20) -> 9
-    assert state.get_state_as_string(np.array([0.95, 0.9, -0.95, 0.0, 19.9, 0.0, 0.0, 0.0])) == "9_9_1_5_9_5_5_10"
+    assert tutorial_key([0.95, 0.9, -0.95, 0.0, 19.9, 0.0, 0.0, 0.0], max_height=2.0, min_height=1.0, max_incl=1.0,
+                        desired_force=10.0) == "9_9_1_5_9_5_5_10"
 
 
 # -- actions --------------------------------------------------------------------------------------
+def targets(joints, action, names=JOINTS):
+    backend = FakeBackend(readings(joints=joints, names=names))
+    env = MonopedEnv(backend=backend, params=params())
+    env.reset()
+    backend.commands.clear()
+    env.step(action)
+    assert [controller for controller, _ in backend.commands] == list(CONTROLLERS)
+    return [value for _, value in backend.commands]
+
+
 @pytest.mark.parametrize("action, expected", [
     (0, [0.15, -0.2, -0.3]), (1, [0.05, -0.2, -0.3]),
     (2, [0.1, -0.15, -0.3]), (3, [0.1, -0.25, -0.3]),
     (4, [0.1, -0.2, -0.25]), (5, [0.1, -0.2, -0.35]),
 ])
 def test_each_action_moves_one_joint_by_the_increment(action, expected):
-    state = state_for(readings(joints=(0.1, -0.2, -0.3)))
-    assert state.get_action_to_position(action, state.get_joint_positions()) == pytest.approx(expected)
+    assert targets((0.1, -0.2, -0.3), action) == pytest.approx(expected)
 
 
 @pytest.mark.parametrize("joints, action, expected", [
@@ -227,38 +251,53 @@ def test_each_action_moves_one_joint_by_the_increment(action, expected):
     ((1.6, 0.0, 0.0), 1, [1.55, 0.0, 0.0]),       # moving back from a limit is not clamped
 ])
 def test_actions_are_clamped_to_the_urdf_limits(joints, action, expected):
-    state = state_for(readings(joints=joints))
-    assert state.get_action_to_position(action, state.get_joint_positions()) == pytest.approx(expected)
+    assert targets(joints, action) == pytest.approx(expected)
+
+
+def test_joint_limits_are_the_urdfs():
+    joints = {j.get("name"): j.find("limit") for j in ElementTree.parse(MONOPED.urdf_path).getroot().findall("joint")}
+    assert [(float(joints[name].get("lower")), float(joints[name].get("upper"))) for name in JOINTS] == \
+        list(JOINT_LIMITS)
 
 
 def test_joint_positions_are_read_by_name_not_by_index():
-    r = readings(joints=(0.1, -0.2, -0.3))
-    shuffled = Readings(JointStateReading(0.0, ("kfe_joint", "haa_joint", "hfe_joint"), (-0.3, 0.1, -0.2),
-                                          (0.0,) * 3, (0.0,) * 3), r.sensors)
-    assert state_for(shuffled).get_joint_positions() == [0.1, -0.2, -0.3]
+    assert targets((0.1, -0.2, -0.3), 0, names=("kfe_joint", "haa_joint", "hfe_joint")) == \
+        pytest.approx([0.15, -0.2, -0.3])
+
+
+def test_reset_commands_every_joint_to_zero_and_a_step_is_one_physics_step():
+    backend = FakeBackend(readings(joints=(1.58, -0.2, -0.3)))
+    env = MonopedEnv(backend=backend, params=params())
+    env.reset(seed=3)
+    assert backend.resets == [True]
+    assert backend.commands == list(zip(CONTROLLERS, (0.0, 0.0, 0.0)))
+    env.step(0)
+    assert backend.steps == [1]  # running_step 0.001 s of 1 ms physics steps
+    env.reset()
+    assert backend.resets == [True, False]  # an unseeded reset is reset_world
 
 
 # -- params ---------------------------------------------------------------------------------------
-SOURCE = "/tmp/hopper_qlearn.yaml"
+SOURCE = "/tmp/stay_up.yaml"
 
 
 def yaml_params():
-    return yaml.safe_load(DEFAULT_CONFIG.read_text())
+    return STAY_UP.default_params().to_mapping()
 
 
 def param_error(values):
     with pytest.raises(ParamError) as info:
-        validate_params(values, SOURCE)
+        MonopedParams.from_mapping(values, SOURCE)
     message = str(info.value)
     assert message.startswith(f"{SOURCE}: ") and "\n" not in message
     return message
 
 
 def test_the_yaml_is_valid_and_keeps_the_tutorial_values():
-    params = load_default_params()
-    assert (params["alpha"], params["gamma"], params["epsilon"], params["nsteps"]) == (0.1, 0.8, 0.9, 1000)
-    assert (params["desired_pose/x"], params["desired_pose/y"], params["desired_pose/z"]) == (0.0, 0.0, 1.0)
-    assert [params[f"weight_r{i}"] for i in range(1, 6)] == [1.0, 0.0, 1.0, 1.0, 1.0]
+    p = STAY_UP.default_params()
+    assert (p.alpha, p.gamma, p.epsilon, p.nsteps) == (0.1, 0.8, 0.9, 1000)
+    assert p.desired_pose == Point(x=0.0, y=0.0, z=1.0)
+    assert [p.weight_r1, p.weight_r2, p.weight_r3, p.weight_r4, p.weight_r5] == [1.0, 0.0, 1.0, 1.0, 1.0]
 
 
 @pytest.mark.parametrize("key", ["alpha", "nsteps", "weight_r3", "running_step"])
@@ -274,7 +313,8 @@ def test_missing_nested_key():
     assert param_error(values) == f"{SOURCE}: missing parameter 'desired_pose/z'"
 
 
-@pytest.mark.parametrize("key, value", [("alpha", 2), ("nsteps", 0), ("max_incl", 0.0), ("running_step", -0.001)])
+@pytest.mark.parametrize("key, value", [("alpha", 2), ("nsteps", 0), ("max_incl", 0.0), ("running_step", -0.001),
+                                        ("desired_force", 0.0)])
 def test_out_of_range(key, value):
     message = param_error({**yaml_params(), key: value})
     assert f"'{key}'" in message and "out of range" in message
@@ -291,75 +331,34 @@ def test_min_height_must_be_below_max_height(min_height, max_height):
     assert "'min_height'" in message and "'max_height'" in message
 
 
-# -- the env on a fake backend --------------------------------------------------------------------
-class FakeBackend(Backend):
-    """Hands out the readings it is given and records every command and step."""
-
-    time_step = 0.001
-
-    def __init__(self, r):
-        self.readings = r
-        self.commands = []
-        self.steps = []
-        self.resets = []
-
-    def reset(self, restart_time=False):
-        self.resets.append(restart_time)
-        return self.readings
-
-    def set_command(self, controller, value):
-        self.commands.append((controller, value))
-
-    def step(self, physics_steps):
-        self.steps.append(physics_steps)
-        return self.readings
-
-
-def test_env_resets_joints_to_zero_and_sends_the_clamped_targets():
-    backend = FakeBackend(readings(joints=(1.58, -0.2, -0.3)))
-    env = MonopedEnv(backend=backend)
-    observation, info = env.reset(seed=3)
-    assert backend.resets == [True]
-    assert backend.commands == list(zip(CONTROLLERS, (0.0, 0.0, 0.0)))
-    assert observation.tolist() == pytest.approx([0.0, 0.0, 0.0, 0.0, 0.0, 1.58, -0.2, -0.3], abs=1e-6)
-    backend.commands.clear()
-    env.step(0)
-    assert [c for c, _ in backend.commands] == list(CONTROLLERS)
-    assert [v for _, v in backend.commands] == pytest.approx([1.6, -0.2, -0.3])
-    assert backend.steps == [1]  # running_step 0.001 s of 1 ms physics steps
-    backend.commands.clear()
-    env.step(5)
-    assert [c for c, _ in backend.commands] == list(CONTROLLERS)
-    assert [v for _, v in backend.commands] == pytest.approx([1.58, -0.2, -0.35])
-
-
-def test_env_reward_done_and_truncation():
-    backend = FakeBackend(readings(**LEANING))
-    params = {**load_default_params(), "nsteps": 3}
-    env = MonopedEnv(backend=backend, params=params)
+# -- the hop task ---------------------------------------------------------------------------------
+def test_hop_rewards_velocity_along_x_on_top_of_the_stay_up_terms():
+    backend = FakeBackend(readings(position=(0.0, 0.0, 1.0)),
+                          script=[readings(position=(0.01, 0.0, 1.0)), readings(position=(0.005, 0.0, 1.0))])
+    env = MonopedHopEnv(backend=backend, params=params(HOP, running_step=0.02))
     env.reset()
-    assert backend.resets == [False]  # an unseeded reset is reset_world
-    results = [env.step(2)[1:4] for _ in range(3)]
-    reward = ALIVE - (0.6 + 2.08 + 0.6 + 0.5)
-    assert results == [(pytest.approx(reward), False, False)] * 2 + [(pytest.approx(reward), False, True)]
-    backend.readings = readings(position=(0.0, 0.0, 0.3))
-    env.reset()
-    _, reward, terminated, truncated, info = env.step(1)
-    assert (reward, terminated, truncated, info["fell"]) == (DONE, True, False, True)
-    assert info["base_height"] == 0.3
+    _, reward, _, _, info = env.step(0)
+    weight = env.params.forward_reward_weight
+    assert info["reward_forward"] == pytest.approx(weight * 0.01 / 0.02)
+    assert info["x_travelled"] == pytest.approx(0.01)
+    assert "reward_alive" in info and "reward_distance" in info
+    _, _, _, _, info = env.step(0)
+    assert info["reward_forward"] == pytest.approx(-weight * 0.005 / 0.02)
+    assert info["x_travelled"] == pytest.approx(0.005)
+
+
+def test_hop_params_add_the_forward_weight():
+    p = HOP.default_params()
+    assert isinstance(p, HopParams) and p.forward_reward_weight > 0.0 and p.weight_r5 == 0.0
+    values = p.to_mapping()
+    del values["forward_reward_weight"]
+    with pytest.raises(ParamError, match="forward_reward_weight"):
+        HopParams.from_mapping(values, "hop.yaml")
 
 
 # -- the env on the direct backend ----------------------------------------------------------------
-def test_check_env_passes_on_the_direct_backend():
-    env = gymnasium.make(hopper_training.ENV_ID, backend="direct")
-    try:
-        check_env(env.unwrapped, skip_render_check=True)
-    finally:
-        env.close()
-
-
 def test_direct_observations_are_float32_in_the_space_in_the_tutorial_order():
-    env = gymnasium.make(hopper_training.ENV_ID, backend="direct").unwrapped
+    env = gymnasium.make(STAY_UP.env_id, backend="direct").unwrapped
     try:
         observation, _ = env.reset(seed=0)
         actions = [3, 3, 5, 5, 0, 2, 4, 1] * 25
@@ -385,7 +384,7 @@ def test_direct_observations_are_float32_in_the_space_in_the_tutorial_order():
 
 def test_same_seed_same_episode_on_the_direct_backend():
     def episode():
-        env = gymnasium.make(hopper_training.ENV_ID, backend="direct", seed=4).unwrapped
+        env = gymnasium.make(STAY_UP.env_id, backend="direct", seed=4).unwrapped
         try:
             env.reset(seed=4)
             steps = [env.step(a) for a in [2, 2, 4, 5, 0, 1] * 10]
@@ -400,7 +399,7 @@ def test_same_seed_same_episode_on_the_direct_backend():
 @pytest.mark.parametrize("restart_time", [True, False], ids=["reset_simulation", "reset_world"])
 def test_contact_reading_is_empty_right_after_a_reset(restart_time):
     """The robot is back at its spawn pose, the foot 5 cm above the ground: no contact."""
-    backend = DirectBackend(URDF, SIM_CONFIG)
+    backend = DirectBackend(MONOPED.urdf_path, MONOPED.sim_config_path)
     try:
         landed = backend.step(500).sensors["lowerleg_contactsensor_sensor"]
         assert landed.contacts, "the foot should be on the ground after 0.5 s"
@@ -413,10 +412,10 @@ def test_contact_reading_is_empty_right_after_a_reset(restart_time):
 
 
 def test_a_seeded_reset_after_an_episode_gives_the_first_observation_of_a_fresh_env():
-    env = gymnasium.make(hopper_training.ENV_ID, backend="direct").unwrapped
+    env = gymnasium.make(STAY_UP.env_id, backend="direct").unwrapped
     try:
         fresh, _ = env.reset(seed=0)
-        assert env.monoped_state.get_state_as_string(fresh) == "5_5_5_5_1_5_5_10"
+        assert tutorial_key(fresh) == "5_5_5_5_1_5_5_10"
         for _ in range(300):
             env.step(2)
         again, _ = env.reset(seed=0)

@@ -1,42 +1,70 @@
-"""Unit tests for robot_rl.params (no ROS needed)."""
+"""Unit tests for robot_rl.params: typed params dataclasses and the YAML loader (no ROS needed)."""
+from dataclasses import FrozenInstanceError, dataclass
+
 import pytest
 
-from robot_rl.params import Param, ParamError, flatten, load_yaml_file, validate
+from robot_rl.params import ParamError, Params, Point, load_yaml_file, param
 
 SRC = "/ws/config/hopper.yaml"
-SPEC = [
-    Param("alpha", float, 0.0, 1.0, low_inclusive=False),
-    Param("nepisodes", int, 1),
-    Param("running_step", float, 0.0, None, low_inclusive=False),
-    Param("init_cube_pose/y", float),
-    Param("use_gui", bool),
-    Param("robot", str),
-]
-GOOD = {"alpha": 0.1, "nepisodes": 500, "running_step": 0.04, "init_cube_pose/y": 0,
+
+
+@dataclass(frozen=True, kw_only=True)
+class Example(Params):
+    alpha: float = param(low=0.0, high=1.0, low_open=True)
+    nepisodes: int = param(low=1)
+    running_step: float = param(low=0.0, low_open=True)
+    init_cube_pose: Point
+    use_gui: bool
+    robot: str = param(choices=("hopper", "cube"))
+    seed: int = param(low=0, default=0)
+
+
+GOOD = {"alpha": 0.1, "nepisodes": 500, "running_step": 0.04, "init_cube_pose": {"x": 0, "y": 1, "z": 2.5},
         "use_gui": False, "robot": "hopper"}
 
 
 def error(values):
     with pytest.raises(ParamError) as info:
-        validate(values, SPEC, SRC)
+        Example.from_mapping(values, SRC)
     msg = str(info.value)
     assert msg.startswith(SRC + ": ")
     assert "\n" not in msg
     return msg
 
 
-def test_valid_and_int_accepted_as_float():
-    out = validate(GOOD, SPEC, SRC)
-    assert out == {**GOOD, "init_cube_pose/y": 0.0}
-    assert type(out["init_cube_pose/y"]) is float
-    assert type(out["nepisodes"]) is int
-    assert GOOD["init_cube_pose/y"] == 0 and type(GOOD["init_cube_pose/y"]) is int  # input untouched
+def test_valid_values_become_typed_attributes():
+    p = Example.from_mapping(GOOD, SRC)
+    assert (p.alpha, p.nepisodes, p.robot, p.seed) == (0.1, 500, "hopper", 0)
+    assert p.init_cube_pose == Point(x=0.0, y=1.0, z=2.5) and type(p.init_cube_pose.x) is float
+    assert type(p.nepisodes) is int
+    with pytest.raises(FrozenInstanceError):
+        p.alpha = 0.2  # type: ignore[misc]
 
 
-def test_missing():
+def test_round_trip_and_unknown_keys_ignored():
+    p = Example.from_mapping({**GOOD, "use_sim_time": True, "pos_step": 0.016}, SRC)
+    assert Example.from_mapping(p.to_mapping(), SRC) == p
+    assert p.to_mapping()["init_cube_pose"] == {"x": 0.0, "y": 1.0, "z": 2.5}
+
+
+def test_with_changes_validates_again():
+    p = Example.from_mapping(GOOD, SRC)
+    assert p.with_changes("~nepisodes", nepisodes=5).nepisodes == 5
+    with pytest.raises(ParamError, match="^~nepisodes: parameter 'nepisodes' = 0 out of range"):
+        p.with_changes("~nepisodes", nepisodes=0)
+
+
+@pytest.mark.parametrize("key", ["running_step", "use_gui"])
+def test_missing(key):
     values = dict(GOOD)
-    del values["running_step"]
-    assert error(values) == f"{SRC}: missing parameter 'running_step'"
+    del values[key]
+    assert error(values) == f"{SRC}: missing parameter '{key}'"
+
+
+def test_missing_nested_and_defaults():
+    assert error({**GOOD, "init_cube_pose": {"x": 0, "y": 1}}) == f"{SRC}: missing parameter 'init_cube_pose/z'"
+    assert "'init_cube_pose' must be a mapping" in error({**GOOD, "init_cube_pose": 3})
+    assert Example.from_mapping({**GOOD, "seed": 7}, SRC).seed == 7
 
 
 @pytest.mark.parametrize("key, bad, expected", [
@@ -46,6 +74,7 @@ def test_missing():
     ("nepisodes", 500.0, "int"),
     ("alpha", True, "float"),
     ("use_gui", 1, "bool"),
+    ("robot", 3, "str"),
 ])
 def test_wrong_type(key, bad, expected):
     msg = error({**GOOD, key: bad})
@@ -55,31 +84,21 @@ def test_wrong_type(key, bad, expected):
 
 
 @pytest.mark.parametrize("key, bad", [("alpha", 0.0), ("alpha", 1.5), ("nepisodes", 0),
-                                      ("running_step", -0.1)])
+                                      ("running_step", -0.1), ("seed", -1)])
 def test_out_of_range(key, bad):
     msg = error({**GOOD, key: bad})
     assert f"'{key}'" in msg and repr(bad) in msg and "range" in msg
 
 
-def test_nan_rejected():
+def test_nan_and_unknown_choice_rejected():
     assert "NaN" in error({**GOOD, "alpha": float("nan")})
-
-
-def test_flatten():
-    assert flatten({"a": {"b": 1}}) == {"a/b": 1}
-    assert flatten({"a": {"b": {"c": 1}, "d": 2}, "e": 3}) == {"a/b/c": 1, "a/d": 2, "e": 3}
-
-
-def test_dict_param_from_flattened_values():
-    spec = [Param("init_cube_pose", dict)]
-    out = validate(flatten({"init_cube_pose": {"x": 0, "y": 1}}), spec, SRC)
-    assert out["init_cube_pose"] == {"x": 0, "y": 1}
+    assert "is not one of hopper, cube" in error({**GOOD, "robot": "drone"})
 
 
 def test_load_yaml_file(tmp_path):
     path = tmp_path / "ok.yaml"
     path.write_text("alpha: 0.1\ninit_cube_pose:\n  y: 0\n")
-    assert flatten(load_yaml_file(path)) == {"alpha": 0.1, "init_cube_pose/y": 0}
+    assert load_yaml_file(path) == {"alpha": 0.1, "init_cube_pose": {"y": 0}}
 
 
 def test_duplicate_key_rejected(tmp_path):

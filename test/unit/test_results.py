@@ -6,7 +6,7 @@ import pytest
 import yaml
 
 from robot_rl.qlearn import QLearn
-from robot_rl.results import EpisodeRecord, RunDirectory
+from robot_rl.results import EpisodeRecord, RunDirectory, aggregate, moving_average
 
 HEADER = "episode,steps,return,epsilon,sim_time,wall_time\n"
 PARAMS = {"alpha": 0.1, "gamma": 0.8, "init_cube_pose": {"y": 0.0}}
@@ -14,6 +14,11 @@ PARAMS = {"alpha": 0.1, "gamma": 0.8, "init_cube_pose": {"y": 0.0}}
 
 def record(n):
     return EpisodeRecord(n, 10 * n, n / 3.0 - 2.0, 0.9 ** n, 1.5 * n, 0.1 * n)
+
+
+def keep(state):
+    """A restore callback that accepts any checkpoint."""
+    return state
 
 
 def test_create(tmp_path):
@@ -79,7 +84,7 @@ def test_prepare_resume_drops_rows_after_checkpoint(tmp_path):
     run.checkpoint({"episode": 3})
     run.append_episode(record(4))  # logged, then crash before the next checkpoint
     resumed = RunDirectory.latest(tmp_path, "hopper")
-    assert resumed.prepare_resume()["episode"] == 3
+    assert resumed.prepare_resume(keep)["episode"] == 3
     assert resumed.read_episodes() == [record(n) for n in range(1, 4)]
     resumed.append_episode(record(4))  # re-run: no duplicate
     assert [r.episode for r in resumed.read_episodes()] == [1, 2, 3, 4]
@@ -100,3 +105,49 @@ def test_summary(tmp_path):
     assert json.loads((run.path / "summary.json").read_text()) == {"episodes": 3, "best_return": 1.5}
     with pytest.raises(ValueError):
         run.write_summary({"best_return": float("nan")})
+
+
+def test_metric_columns_keep_yes_no_values(tmp_path):
+    run = RunDirectory.create(tmp_path, "moving_cube", PARAMS, metric_names=("y_distance", "success"))
+    assert run.episodes_csv.read_text() == HEADER.rstrip("\n") + ",y_distance,success\n"
+    records = [EpisodeRecord(n, n, 0.0, 0.5, n, n, {"y_distance": 0.25 * n, "success": n > 2}) for n in (1, 2, 3, 4)]
+    for r in records:
+        run.append_episode(r)
+    assert run.metric_names == ("y_distance", "success")
+    assert run.read_episodes() == records
+    assert aggregate({"y_distance": [r.metrics["y_distance"] for r in records],
+                      "success": [r.metrics["success"] for r in records]}) == \
+        {"mean_y_distance": pytest.approx(0.625), "success_rate": 0.5}
+    run.write_learning_curve("success")
+    assert run.learning_curve_png.read_bytes().startswith(b"\x89PNG")
+
+
+def test_a_row_with_a_missing_column_is_reported(tmp_path):
+    run = RunDirectory.create(tmp_path, "moving_cube", PARAMS, metric_names=("success",))
+    with open(run.episodes_csv, "a") as f:
+        f.write("1,2,3.0,0.5,1.0,1.0\n")
+    with pytest.raises(ValueError, match="episodes.csv:2: bad row"):
+        run.read_episodes()
+
+
+@pytest.mark.parametrize("content, reason", [
+    (b"\xff\xfe\x00garbage", "not UTF-8"), (b"[1, 2]", "a JSON list"), (b"{", "invalid JSON")])
+def test_an_unreadable_checkpoint_names_the_file(tmp_path, content, reason):
+    run = RunDirectory.create(tmp_path, "hopper", PARAMS)
+    run.qtable_json.write_bytes(content)
+    with pytest.raises(ValueError, match=reason) as info:
+        run.load_checkpoint()
+    assert str(info.value).startswith(str(run.qtable_json))
+
+
+def test_prepare_resume_refuses_a_checkpoint_ahead_of_the_episodes(tmp_path):
+    run = RunDirectory.create(tmp_path, "hopper", PARAMS)
+    run.append_episode(record(1))
+    run.checkpoint({"episode": 3})
+    with pytest.raises(ValueError, match="fewer than the 3"):
+        run.prepare_resume(keep)
+    assert run.read_episodes() == [record(1)]
+
+
+def test_moving_average_starts_with_the_mean_so_far():
+    assert moving_average([1.0, 3.0, 5.0, 7.0], window=2).tolist() == [1.0, 2.0, 4.0, 6.0]

@@ -1,8 +1,7 @@
 """Unit tests for pybullet_sim.config.parse_robot_config (no ROS, no physics)."""
 import pytest
 
-from pybullet_sim.config import (JOINT_STATE_CONTROLLER, VELOCITY_CONTROLLER, ConfigError,
-                                 parse_robot_config)
+from pybullet_sim.config import JOINT_STATE_CONTROLLER, VELOCITY_CONTROLLER, ConfigError, parse_robot_config
 
 WHEEL = "inertia_wheel_roll_joint_velocity_controller"
 P3D = "p3d_base_controller"

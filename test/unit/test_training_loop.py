@@ -1,33 +1,33 @@
 """The Q-learning loop on the cube env with the in-process (direct) backend: results files,
-epsilon schedule, resume after a crash, determinism. No ROS master."""
+epsilon schedule, progress lines, resume after a crash, determinism. No ROS master."""
 import csv
+import dataclasses
 import json
 
-import gymnasium
 import pytest
 import yaml
 
-import moving_cube_training
-from moving_cube_training.params import load_default_params
-from moving_cube_training.state import CubeStateKey
+from moving_cube_training.one_disk_walk import ONE_DISK_WALK
 from robot_rl.results import EpisodeRecord, RunDirectory
-from robot_rl.training import QLearningTrainer, make_trainer_config
+from robot_rl.task import make_env
+from robot_rl.training import QLearningTrainer
 
-HEADER = ["episode", "steps", "return", "epsilon", "sim_time", "wall_time"]
+HEADER = ["episode", "steps", "return", "epsilon", "sim_time", "wall_time", "y_distance", "success"]
 
 
 def cube_params(**overrides):
-    params = load_default_params()
-    params.update(nepisodes=3, nsteps=20)
-    params.update(overrides)
-    return params
+    return dataclasses.replace(ONE_DISK_WALK.default_params(), **{"nepisodes": 3, "nsteps": 20, **overrides})
 
 
-def make_trainer(run, params, checkpoint_every=10, resume=False, log=None):
-    env = gymnasium.make(moving_cube_training.ENV_ID, backend="direct", params=params, seed=params["seed"])
+def new_run(tmp_path, params, run_name=None):
+    return RunDirectory.create(tmp_path, "moving_cube", params.to_mapping(), ONE_DISK_WALK.metric_names, run_name)
+
+
+def make_trainer(run, params, checkpoint_every=10, resume=False, log=None, **kwargs):
+    env = make_env(ONE_DISK_WALK, params=params, backend="direct", seed=params.seed)
     lines = [] if log is None else log
-    trainer = QLearningTrainer(env, CubeStateKey(params), make_trainer_config(params, checkpoint_every), run,
-                               log=lines.append, resume=resume)
+    trainer = QLearningTrainer(env, ONE_DISK_WALK, params, run, log=lines.append, resume=resume,
+                               checkpoint_every=checkpoint_every, **kwargs)
     return trainer, env
 
 
@@ -46,22 +46,25 @@ def csv_rows(run):
 
 def test_three_episodes_write_every_results_file(tmp_path):
     params = cube_params()
-    run = RunDirectory.create(tmp_path, "moving_cube", params)
+    run = new_run(tmp_path, params)
     log = []
     _, summary = train(run, params, log=log)
 
     rows = csv_rows(run)
     assert rows[0] == HEADER
     assert [int(r[0]) for r in rows[1:]] == [1, 2, 3]
-    assert all(1 <= int(r[1]) <= params["nsteps"] for r in rows[1:])
-    assert yaml.safe_load(run.params_yaml.read_text()) == params
+    assert all(1 <= int(r[1]) <= params.nsteps for r in rows[1:])
+    assert all(r[7] in ("True", "False") and float(r[6]) == pytest.approx(float(r[6])) for r in rows[1:])
+    assert type(params).from_mapping(yaml.safe_load(run.params_yaml.read_text()), "params.yaml") == params
     checkpoint = json.loads(run.qtable_json.read_text())
-    assert checkpoint["episode"] == 3
+    assert (checkpoint["episode"], checkpoint["task"]) == (3, "MovingCubeOneDiskWalk-v0")
     assert checkpoint["qlearn"]["q"], "the Q-table learned something"
     assert run.learning_curve_png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     on_disk = json.loads(run.summary_json.read_text())
     assert on_disk == summary
     assert on_disk["completed"] is True and on_disk["episodes"] == 3
+    assert set(on_disk["metrics_last_100"]) == {"mean_y_distance", "success_rate"}
+    assert on_disk["headline_metric"] == "success" and on_disk["task"] == "MovingCubeOneDiskWalk-v0"
     assert on_disk["env_steps"] == sum(int(r[1]) for r in rows[1:])
     latest = tmp_path / "moving_cube" / "latest"
     assert latest.is_symlink() and latest.resolve() == run.path.resolve()
@@ -81,7 +84,7 @@ def expected_epsilons(epsilon, discount, n):
 @pytest.mark.parametrize("epsilon, discount", [(0.9, 0.999), (0.3, 0.5)])
 def test_epsilon_decays_before_each_episode_while_above_0_05(tmp_path, epsilon, discount):
     params = cube_params(epsilon=epsilon, epsilon_discount=discount, nepisodes=6, nsteps=3)
-    run = RunDirectory.create(tmp_path, "moving_cube", params)
+    run = new_run(tmp_path, params)
     trainer, _ = train(run, params)
     logged = [r.epsilon for r in run.read_episodes()]
     assert logged == pytest.approx(expected_epsilons(epsilon, discount, 6), rel=1e-12)
@@ -92,18 +95,18 @@ def test_epsilon_decays_before_each_episode_while_above_0_05(tmp_path, epsilon, 
 
 def test_resume_after_a_crash_between_checkpoints(tmp_path):
     params = cube_params(nepisodes=5, nsteps=20)
-    run = RunDirectory.create(tmp_path, "moving_cube", params, run_name="run")
+    run = new_run(tmp_path, params, run_name="run")
     train(run, params, checkpoint_every=5)
     checkpoint = json.loads(run.qtable_json.read_text())
     assert checkpoint["episode"] == 5
     checkpointed_csv = run.episodes_csv.read_bytes()
     # The crash: episodes 6 and 7 were logged after the checkpoint, the 8th row was torn mid-write.
     for episode in (6, 7):
-        run.append_episode(EpisodeRecord(episode, 999, 123456.0, 0.01, 1e6, 1e6))
+        run.append_episode(EpisodeRecord(episode, 999, 123456.0, 0.01, 1e6, 1e6, {"y_distance": 9.0, "success": True}))
     with open(run.episodes_csv, "a") as f:
         f.write("8,12,3.5")
 
-    resumed = dict(params, nepisodes=10)
+    resumed = dataclasses.replace(params, nepisodes=10)
     log = []
     trainer, env = make_trainer(RunDirectory(run.path), resumed, checkpoint_every=5, resume=True, log=log)
     try:
@@ -124,7 +127,7 @@ def test_resume_after_a_crash_between_checkpoints(tmp_path):
     assert run.episodes_csv.read_bytes().startswith(checkpointed_csv), "checkpointed rows are unchanged"
     assert all(r.return_ != 123456.0 and r.steps <= 20 for r in records), "rows logged after the checkpoint are re-run"
     assert run.episodes_csv.read_text().endswith("\n")
-    assert records[5].epsilon == pytest.approx(checkpoint["qlearn"]["epsilon"] * params["epsilon_discount"], rel=1e-12)
+    assert records[5].epsilon == pytest.approx(checkpoint["qlearn"]["epsilon"] * params.epsilon_discount, rel=1e-12)
     assert records[5].sim_time > records[4].sim_time, "sim time carries on from the checkpoint"
     final = json.loads(run.qtable_json.read_text())
     assert final["episode"] == 10
@@ -136,7 +139,7 @@ def test_resume_after_a_crash_between_checkpoints(tmp_path):
 
 def test_resume_without_a_checkpoint_fails_clearly(tmp_path):
     params = cube_params()
-    run = RunDirectory.create(tmp_path, "moving_cube", params)
+    run = new_run(tmp_path, params)
     with pytest.raises(FileNotFoundError, match="qtable.json"):
         make_trainer(run, params, resume=True)
 
@@ -145,7 +148,7 @@ def test_same_seed_same_returns(tmp_path):
     params = cube_params(nepisodes=4, nsteps=30)
     returns = []
     for name in ("a", "b"):
-        run = RunDirectory.create(tmp_path, "moving_cube", params, run_name=name)
+        run = new_run(tmp_path, params, run_name=name)
         train(run, params)
         returns.append([(r.steps, r.return_) for r in run.read_episodes()])
         q = json.loads(run.qtable_json.read_text())["qlearn"]["q"]
@@ -155,7 +158,48 @@ def test_same_seed_same_returns(tmp_path):
     a, b = (RunDirectory(tmp_path / "moving_cube" / n) for n in "ab")
     assert [r[:5] for r in csv_rows(a)] == [r[:5] for r in csv_rows(b)], "all but wall_time is identical"
 
-    other = dict(params, seed=1)
-    run = RunDirectory.create(tmp_path, "moving_cube", other, run_name="other_seed")
+    other = dataclasses.replace(params, seed=1)
+    run = new_run(tmp_path, other, run_name="other_seed")
     train(run, other)
     assert [(r.steps, r.return_) for r in run.read_episodes()] != returns[0][:4], "the seed matters"
+
+
+def test_progress_lines_give_rate_eta_and_the_headline_metric(tmp_path):
+    params = cube_params(nepisodes=4, nsteps=10)
+    run = new_run(tmp_path, params)
+    log, episode_lines = [], []
+    trainer, env = make_trainer(run, params, log=log, log_episode=episode_lines.append, progress_every_s=0.0)
+    try:
+        trainer.train()
+    finally:
+        env.close()
+    progress = [line for line in log if line.startswith("progress: ")]
+    assert len(progress) == 4, log
+    assert progress[-1].startswith("progress: episode 4/4 (100 %), ")
+    assert "env steps/s, ETA 0:00:00, success_rate over the last 4 episodes: " in progress[-1]
+    assert [line.split(" - ")[0] for line in episode_lines] == ["EP: 1", "EP: 2", "EP: 3", "EP: 4"]
+    assert not any(line.startswith("EP: ") for line in log), "per-episode lines go to log_episode"
+
+
+@pytest.mark.parametrize("damage, reason", [
+    (lambda c: c.pop("qlearn"), "missing 'qlearn'"),
+    (lambda c: c.update(format="robot_rl.training_checkpoint/1"), "format"),
+    (lambda c: c.update(task="Monoped-v0"), "task 'Monoped-v0'"),
+    (lambda c: c["state"].update(episode="ten"), "wrong types"),
+    (lambda c: c.update(episode=7), "differs"),
+    (lambda c: c["qlearn"].update(actions=[0, 1]), "actions"),
+    (lambda c: c.update(state_key={"format": "other"}), "state key"),
+], ids=["no_qlearn", "old_format", "other_task", "bad_state", "episode_mismatch", "actions", "state_key"])
+def test_a_damaged_checkpoint_is_refused_before_any_file_changes(tmp_path, damage, reason):
+    params = cube_params(nepisodes=5, nsteps=10)
+    run = new_run(tmp_path, params, run_name="run")
+    train(run, params, checkpoint_every=5)
+    run.append_episode(EpisodeRecord(6, 3, 1.0, 0.5, 100.0, 100.0, {"y_distance": 0.0, "success": False}))
+    checkpoint = json.loads(run.qtable_json.read_text())
+    damage(checkpoint)
+    run.qtable_json.write_text(json.dumps(checkpoint))
+    before = {p.name: p.read_bytes() for p in run.path.iterdir()}
+    with pytest.raises(ValueError, match=reason) as info:
+        make_trainer(run, params, resume=True)
+    assert str(info.value).startswith(f"{run.qtable_json}: not a usable checkpoint")
+    assert {p.name: p.read_bytes() for p in run.path.iterdir()} == before, "nothing was written"

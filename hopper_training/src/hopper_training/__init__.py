@@ -1,11 +1,14 @@
-"""The monoped hopper's training: MonopedState and JointPub (seed 001), Monoped-v0, Q-learning.
+"""The monoped hopper's training: the Monoped-v0 (stay up) and MonopedHop-v0 tasks, Q-learning.
 
-Importing this package registers Monoped-v0 with gymnasium:
+Importing this package registers both with gymnasium:
 `gymnasium.make("Monoped-v0", backend="ros" | "direct")`.
 """
-import gymnasium
+from typing import Any
 
-ENV_ID = "Monoped-v0"
+from robot_rl.task import TaskSpec, register_tasks
 
-if ENV_ID not in gymnasium.registry:
-    gymnasium.register(id=ENV_ID, entry_point="hopper_training.monoped_env:MonopedEnv")
+from .hop import HOP
+from .monoped_env import STAY_UP
+
+TASKS: list[TaskSpec[Any]] = [STAY_UP, HOP]
+register_tasks(*TASKS)

@@ -1,11 +1,13 @@
-"""The moving cube's training: CubeRLUtils (seed 000), the MovingCubeOneDiskWalk-v0 env, Q-learning.
+"""The moving cube's training: CubeRLUtils (seed 000), the MovingCubeOneDiskWalk-v0 task, Q-learning.
 
 Importing this package registers MovingCubeOneDiskWalk-v0 with gymnasium:
 `gymnasium.make("MovingCubeOneDiskWalk-v0", backend="ros" | "direct")`.
 """
-import gymnasium
+from typing import Any
 
-ENV_ID = "MovingCubeOneDiskWalk-v0"
+from robot_rl.task import TaskSpec, register_tasks
 
-if ENV_ID not in gymnasium.registry:
-    gymnasium.register(id=ENV_ID, entry_point="moving_cube_training.one_disk_walk:MovingCubeOneDiskWalkEnv")
+from .one_disk_walk import ONE_DISK_WALK
+
+TASKS: list[TaskSpec[Any]] = [ONE_DISK_WALK]
+register_tasks(*TASKS)

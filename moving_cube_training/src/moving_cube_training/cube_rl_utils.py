@@ -27,10 +27,10 @@ from pybullet_sim.client import SimConnectionError
 JOINT_STATES_TOPIC = "/moving_cube/joint_states"
 ODOM_TOPIC = "/moving_cube/odom"
 ROLL_COMMAND_TOPIC = "/moving_cube/inertia_wheel_roll_joint_velocity_controller/command"
-SIM_HINT = "is the sim running and unpaused? ./ws exec roslaunch launch/cube_sim.launch paused:=false"
+SIM_HINT = "is the sim running and unpaused? roslaunch pybullet_sim cube_sim.launch paused:=false"
 
 
-class CubeRLUtils(object):
+class CubeRLUtils:
     def __init__(self, timeout=10.0):
         # Not in the seed: the seed waited forever; every wait here gives up after `timeout` wall seconds.
         self.timeout = timeout

@@ -1,42 +1,29 @@
-"""The cube training's parameters: the tutorial's one_disk_walk_openai_params.yaml keys under /moving_cube/,
-validated at start (missing key, wrong type, out of range -> one line naming the key and the file)."""
+"""The cube task's parameters: the tutorial's one_disk_walk_openai_params.yaml keys, under /moving_cube/.
+
+Validated at start: a missing key, a wrong type or a value out of range stops with one line naming
+the key and the file. The tutorial's unused keys (pos_step, number_splits, max_distance) may stay in
+the YAML; nothing reads them.
+"""
 from __future__ import annotations
 
-from pathlib import Path
-from typing import Any, Dict
+from dataclasses import dataclass
 
-from robot_rl.params import Param, flatten, load_yaml_file, validate
+from robot_rl.params import Point, TaskParams, param
 
-NAMESPACE = "moving_cube"
-DEFAULT_CONFIG = Path(__file__).resolve().parents[3] / "config" / "moving_cube_qlearn.yaml"
-
-SPEC = [
-    Param("alpha", float, 0.0, 1.0), Param("gamma", float, 0.0, 1.0),
-    Param("epsilon", float, 0.0, 1.0), Param("epsilon_discount", float, 0.0, 1.0),
-    Param("nepisodes", int, 1), Param("nsteps", int, 1),
-    Param("running_step", float, 0.0, low_inclusive=False),
-    Param("n_actions", int, 5, 5),
-    Param("init_roll_vel", float), Param("roll_speed_fixed_value", float, 0.0, low_inclusive=False),
-    Param("roll_speed_increment_value", float, 0.0, low_inclusive=False),
-    Param("max_pitch_angle", float, 0.0, low_inclusive=False), Param("max_yaw_angle", float, 0.0, low_inclusive=False),
-    Param("init_cube_pose/x", float), Param("init_cube_pose/y", float), Param("init_cube_pose/z", float),
-    Param("end_episode_points", float), Param("move_distance_reward_weight", float),
-    Param("y_linear_speed_reward_weight", float), Param("y_axis_angle_reward_weight", float),
-    Param("reset_settle_time", float, 0.0),
-    Param("seed", int, 0),
-]
+N_ACTIONS = 5
 
 
-def load_params(path: Path) -> Dict[str, Any]:
-    """Validated params from a YAML file holding them under `moving_cube:`."""
-    document = load_yaml_file(path)
-    return validate_params(document.get(NAMESPACE, {}), str(path))
-
-
-def validate_params(values: Dict[str, Any], source: str) -> Dict[str, Any]:
-    """Validate the /moving_cube/ namespace's params (nested dict as rosparam returns it)."""
-    return validate(flatten(values), SPEC, source)
-
-
-def load_default_params() -> Dict[str, Any]:
-    return load_params(DEFAULT_CONFIG)
+@dataclass(frozen=True, kw_only=True)
+class CubeParams(TaskParams):
+    n_actions: int = param(low=N_ACTIONS, high=N_ACTIONS, doc="wheel +fixed, -fixed, stop, +increment, -increment")
+    init_roll_vel: float = param(doc="wheel command at the start of an episode (rad/s)")
+    roll_speed_fixed_value: float = param(low=0.0, low_open=True, doc="wheel command of actions 0/1, and its bound")
+    roll_speed_increment_value: float = param(low=0.0, low_open=True, doc="wheel command change of actions 3/4")
+    max_pitch_angle: float = param(low=0.0, low_open=True, doc="a fall: |pitch| beyond this (rad)")
+    max_yaw_angle: float = param(low=0.0, low_open=True, doc="a fall: |yaw| beyond this (rad)")
+    init_cube_pose: Point = param(doc="distances are measured along y from init_cube_pose/y")
+    end_episode_points: float = param(doc="a fall gives -end_episode_points")
+    move_distance_reward_weight: float
+    y_linear_speed_reward_weight: float
+    y_axis_angle_reward_weight: float
+    reset_settle_time: float = param(low=0.0, doc="sim seconds the cube lands after a reset")

@@ -16,11 +16,13 @@ after a violent stop look alike, and the greedy policy learned to fall (measured
 from __future__ import annotations
 
 import math
-from typing import Any, Dict
+from typing import Any
 
 import numpy as np
 
 from robot_rl.discretiser import Discretiser
+
+from .params import CubeParams
 
 FORMAT = "moving_cube_training.state_key/1"
 
@@ -31,10 +33,10 @@ def roll_phase(roll: float) -> float:
 
 
 class CubeStateKey:
-    def __init__(self, params: Dict[str, Any]):
-        fixed, increment = params["roll_speed_fixed_value"], params["roll_speed_increment_value"]
+    def __init__(self, params: CubeParams):
+        fixed, increment = params.roll_speed_fixed_value, params.roll_speed_increment_value
         wheel_edges = np.arange(-fixed - increment / 2, fixed + increment, increment)
-        yaw = params["max_yaw_angle"]
+        yaw = params.max_yaw_angle
         self.discretiser = Discretiser.from_edges([
             wheel_edges,
             [-0.35, -0.08, 0.08, 0.35],
@@ -46,5 +48,5 @@ class CubeStateKey:
         wheel_speed, _, roll, _, y_speed, yaw = (float(v) for v in observation)
         return self.discretiser.key(np.array([wheel_speed, roll_phase(roll), y_speed, yaw]))
 
-    def to_dict(self) -> Dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:
         return {"format": FORMAT, "discretiser": self.discretiser.to_dict()}

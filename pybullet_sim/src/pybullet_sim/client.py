@@ -20,7 +20,7 @@ from pybullet_sim.srv import Step, StepRequest
 STEP_SERVICE = "/pybullet_sim/step"
 GAZEBO_SERVICES = ("/gazebo/pause_physics", "/gazebo/unpause_physics", "/gazebo/reset_world",
                    "/gazebo/reset_simulation")
-HINT = "is the sim node running? (e.g. ./ws exec roslaunch launch/cube_sim.launch)"
+HINT = "is the sim node running? (e.g. roslaunch pybullet_sim cube_sim.launch)"
 
 Reading = TypeVar("Reading")
 
@@ -49,8 +49,9 @@ class CommandPublisher:
     _sent: Dict[str, int] = {}
     _sent_lock = threading.Lock()
 
-    def __init__(self, topic: str):
+    def __init__(self, topic: str, hint: str = HINT):
         self.topic = rospy.resolve_name(topic)
+        self.hint = hint
         self._publisher = synchronous_publisher(self.topic, Float64)
 
     @property
@@ -65,7 +66,7 @@ class CommandPublisher:
             if rospy.is_shutdown():
                 raise SimConnectionError(f"shutdown while waiting for a subscriber on {self.topic}")
             if time.monotonic() > end:
-                raise SimConnectionError(f"nobody subscribed to {self.topic} within {timeout} s; {HINT}")
+                raise SimConnectionError(f"nobody subscribed to {self.topic} within {timeout} s; {self.hint}")
             time.sleep(0.01)
 
     def publish(self, value: float) -> None:
@@ -80,8 +81,9 @@ class CommandPublisher:
 class SensorSubscriber(Generic[Reading]):
     """Keeps the latest message of a topic (converted to a reading) and lets callers wait for a newer one."""
 
-    def __init__(self, topic: str, msg_type, to_reading: Callable[[object], Reading]):
+    def __init__(self, topic: str, msg_type, to_reading: Callable[[object], Reading], hint: str = HINT):
         self.topic = rospy.resolve_name(topic)
+        self.hint = hint
         self._to_reading = to_reading
         self._condition = threading.Condition()
         self._count = 0
@@ -101,7 +103,7 @@ class SensorSubscriber(Generic[Reading]):
             if rospy.is_shutdown():
                 raise SimConnectionError(f"shutdown while waiting for a publisher on {self.topic}")
             if time.monotonic() > end:
-                raise SimConnectionError(f"no publisher of {self.topic} connected within {timeout} s; {HINT}")
+                raise SimConnectionError(f"no publisher of {self.topic} connected within {timeout} s; {self.hint}")
             time.sleep(0.01)
 
     @property
@@ -124,7 +126,7 @@ class SensorSubscriber(Generic[Reading]):
                 got = "" if self._latest_msg is None else \
                     f" (latest is stamped {self._latest_msg.header.stamp.to_sec():.6f} s)"
                 raise SimConnectionError(f"no new message on {self.topic}{expected} within {timeout} s{got}; "
-                                         f"{HINT} Check `rostopic hz {self.topic}`.")
+                                         f"{self.hint} Check `rostopic hz {self.topic}`.")
             return self._to_reading(self._latest_msg)
 
     def unregister(self) -> None:
@@ -134,13 +136,14 @@ class SensorSubscriber(Generic[Reading]):
 class SimConnection:
     """pause / unpause / reset_world / reset_simulation / step on the sim node."""
 
-    def __init__(self, timeout: float = 10.0):
+    def __init__(self, timeout: float = 10.0, hint: str = HINT):
         self.timeout = timeout
+        self.hint = hint
         for name in GAZEBO_SERVICES + (STEP_SERVICE,):
             try:
                 rospy.wait_for_service(name, timeout)
             except rospy.ROSException:
-                raise SimConnectionError(f"service {name} is not available after {timeout} s; {HINT}") from None
+                raise SimConnectionError(f"service {name} is not available after {timeout} s; {hint}") from None
         self._empty = {name: rospy.ServiceProxy(name, Empty, persistent=True) for name in GAZEBO_SERVICES}
         self._step = rospy.ServiceProxy(STEP_SERVICE, Step, persistent=True)
         self._request = StepRequest()
@@ -149,7 +152,7 @@ class SimConnection:
         try:
             self._empty[name]()
         except (rospy.ServiceException, rospy.ROSException) as error:
-            raise SimConnectionError(f"service {name} failed: {error}; {HINT}") from None
+            raise SimConnectionError(f"service {name} failed: {error}; {self.hint}") from None
 
     def pause(self) -> None:
         self._call_empty("/gazebo/pause_physics")

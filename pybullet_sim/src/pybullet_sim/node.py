@@ -9,7 +9,7 @@ sensor at its own rate of sim time, and paused, where time only moves through th
 Private params: ~time_step (0.001 s), ~real_time_factor (1.0), ~paused (false), ~gui (false), ~seed (0),
 ~command_timeout (2.0 s: how long ~step waits for the commands its caller announced),
 ~pub_clock_frequency (100 Hz of wall time at most for /clock, gazebo_ros's default), plus the robot's
-controllers and sensors (see config/moving_cube_sim.yaml). The URDF comes from `robot_description`.
+controllers and sensors (see moving_cube_description/config/moving_cube_sim.yaml). The URDF comes from `robot_description`.
 """
 from __future__ import annotations
 
@@ -83,7 +83,7 @@ class SimNode:
         description_param = rospy.resolve_name("robot_description")
         if not rospy.has_param(description_param):
             raise ConfigError(f"parameter {description_param} is missing: load the robot's URDF into it "
-                              f"(launch/cube_sim.launch does)")
+                              f"(pybullet_sim's sim.launch does)")
         urdf = rospy.get_param(description_param)
         if not isinstance(urdf, str):
             raise UrdfError(f"parameter {description_param} must hold the URDF as a string")

@@ -10,16 +10,22 @@ call, as the sim node publishes them once, so the same seed and actions give the
 from __future__ import annotations
 
 import abc
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Dict, Mapping, Optional
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import yaml
 
 from pybullet_sim.config import RobotConfig, parse_robot_config
-from pybullet_sim.readings import JointStateReading
+from pybullet_sim.readings import ContactReading, ImuReading, JointStateReading, OdometryReading
+
+if TYPE_CHECKING:
+    from .task import RobotSpec
 
 SIM_NODE = "/pybullet_sim"  # the sim node's name in every launch file: its private params describe the robot
+SensorReading = OdometryReading | ImuReading | ContactReading
+R = TypeVar("R", OdometryReading, ImuReading, ContactReading)
 
 
 @dataclass(frozen=True)
@@ -27,11 +33,27 @@ class Readings:
     """One snapshot of every sensor of the robot, all stamped at the same sim time."""
 
     joints: JointStateReading
-    sensors: Mapping[str, object]  # sensor name (as in config/<robot>_sim.yaml) -> reading
+    sensors: Mapping[str, SensorReading]  # sensor name (as in config/<robot>_sim.yaml) -> reading
 
     @property
     def stamp(self) -> float:
         return self.joints.stamp
+
+    def odometry(self, name: str) -> OdometryReading:
+        return self._sensor(name, OdometryReading)
+
+    def imu(self, name: str) -> ImuReading:
+        return self._sensor(name, ImuReading)
+
+    def contact(self, name: str) -> ContactReading:
+        return self._sensor(name, ContactReading)
+
+    def _sensor(self, name: str, kind: type[R]) -> R:
+        reading = self.sensors.get(name)
+        if not isinstance(reading, kind):
+            raise KeyError(f"the robot has no {kind.__name__[:-len('Reading')].lower()} sensor {name!r} "
+                           f"(its sensors: {', '.join(sorted(self.sensors)) or 'none'})")
+        return reading
 
 
 class Backend(abc.ABC):
@@ -53,7 +75,7 @@ class Backend(abc.ABC):
     def step(self, physics_steps: int) -> Readings:
         """Advance exactly `physics_steps` physics steps and return the readings at the new time."""
 
-    def close(self) -> None:
+    def close(self) -> None:  # noqa: B027 (optional: a backend without resources keeps this)
         """Release the backend's resources."""
 
 
@@ -91,13 +113,32 @@ class DirectBackend(Backend):
         self.world.close()
 
 
+def init_ros_node(name: str) -> None:
+    """Make this process an anonymous ROS node `name`, unless it already is one. Fails at once with a
+    SimConnectionError when no master answers (rospy.init_node would retry forever)."""
+    import threading
+
+    import rosgraph
+    import rospy
+
+    from pybullet_sim.client import SimConnectionError
+    if rospy.core.is_initialized():
+        return
+    uri = rosgraph.get_master_uri()
+    if not rosgraph.masterapi.is_online(uri):
+        raise SimConnectionError(f"no ROS master at {uri} (ROS_MASTER_URI): start the sim's launch file, or "
+                                 f"point ROS_MASTER_URI at the master it runs on")
+    rospy.init_node(name, anonymous=True, disable_signals=threading.current_thread() is not threading.main_thread())
+
+
 class RosBackend(Backend):
     """The robot behind a running sim node, in lockstep over ROS topics and services.
 
     The robot (topics, controllers, sensors) is read from the sim node's own parameters, so the
-    env and the sim cannot disagree. Needs rospy.init_node to have been called."""
+    env and the sim cannot disagree; `robot` is the robot the caller expects, checked against them.
+    Makes this process a ROS node (init_ros_node) if it is not one yet."""
 
-    def __init__(self, timeout: float = 10.0, sim_node: str = SIM_NODE):
+    def __init__(self, robot: RobotSpec, timeout: float = 10.0, sim_node: str = SIM_NODE):
         import rospy
         from nav_msgs.msg import Odometry
         from sensor_msgs.msg import Imu, JointState
@@ -106,40 +147,53 @@ class RosBackend(Backend):
         from pybullet_sim.client import CommandPublisher, SensorSubscriber, SimConnection, SimConnectionError
         from pybullet_sim.msg import ContactsState
 
+        init_ros_node("robot_rl_env")
+        hint = f"is the sim node running? (e.g. {robot.sim_launch})"
         self.timeout = timeout
-        self.sim = SimConnection(timeout)  # waits (bounded) for the sim node's services
+        self.sim = SimConnection(timeout, hint)  # waits (bounded) for the sim node's services
         try:
             params = rospy.get_param(sim_node)
         except KeyError:
             raise SimConnectionError(f"parameter {sim_node} is missing: the sim node on this master "
                                      f"({rospy.get_master().getUri()[2]}) is not named {sim_node}") from None
         self.config = parse_robot_config(params, where=sim_node)
+        expected = parse_robot_config(yaml.safe_load(robot.sim_config_path.read_text()), str(robot.sim_config_path))
+        if self.config.robot_namespace != expected.robot_namespace:
+            raise SimConnectionError(f"the sim node {sim_node} simulates {self.config.robot_namespace}, not "
+                                     f"{expected.robot_namespace} ({robot.sim_config_path}): start {robot.sim_launch}")
         self.time_step = float(params.get("time_step", 0.001))
-        self._commands: Dict[str, CommandPublisher] = {
-            c.name: CommandPublisher(self.config.command_topic(c)) for c in self.config.controllers}
+        self._commands: dict[str, CommandPublisher] = {
+            c.name: CommandPublisher(self.config.command_topic(c), hint) for c in self.config.controllers}
         kinds = {"p3d": (Odometry, messages.odometry_reading), "imu": (Imu, messages.imu_reading),
                  "contact": (ContactsState, messages.contact_reading)}
-        self._joints = SensorSubscriber(self.config.joint_states_topic, JointState, messages.joint_state_reading)
-        self._sensors = {s.name: SensorSubscriber(s.topic, *kinds[s.type]) for s in self.config.sensors}
-        self._subscribers = [self._joints, *self._sensors.values()]
+        self._joints = SensorSubscriber(self.config.joint_states_topic, JointState, messages.joint_state_reading,
+                                        hint)
+        self._sensors: dict[str, SensorSubscriber[Any]] = {
+            s.name: SensorSubscriber(s.topic, *kinds[s.type], hint) for s in self.config.sensors}
+        self._subscribers: list[SensorSubscriber[Any]] = [self._joints, *self._sensors.values()]
         for publisher in self._commands.values():
             publisher.wait_for_subscriber(timeout)
         for subscriber in self._subscribers:
             subscriber.wait_for_connection(timeout)
         self.sim.pause()
 
-    def _wait(self, marks, stamp=None) -> Readings:
+    def _wait(self, marks: list[int], stamp: Any = None) -> Readings:
         joints = self._joints.wait_newer(marks[0], self.timeout, stamp)
         sensors = {name: subscriber.wait_newer(mark, self.timeout, stamp)
                    for (name, subscriber), mark in zip(self._sensors.items(), marks[1:])}
         return Readings(joints, sensors)
 
-    def _marks(self):
+    def _marks(self) -> list[int]:
         return [s.count for s in self._subscribers]
 
     def latest(self) -> Readings:
         """The last reading of every sensor, without waiting (the tutorials' way of reading)."""
-        return Readings(self._joints.latest, {name: s.latest for name, s in self._sensors.items()})
+        from pybullet_sim.client import SimConnectionError
+        joints, sensors = self._joints.latest, {name: s.latest for name, s in self._sensors.items()}
+        missing = [s.topic for s in self._subscribers if s.latest is None]
+        if joints is None or missing:
+            raise SimConnectionError(f"no message yet on {', '.join(missing)}")
+        return Readings(joints, {name: reading for name, reading in sensors.items() if reading is not None})
 
     def reset(self, restart_time: bool = False) -> Readings:
         marks = self._marks()
@@ -158,19 +212,20 @@ class RosBackend(Backend):
         return self._wait(marks, stamp)
 
     def close(self) -> None:
-        for endpoint in (*self._commands.values(), *self._subscribers):
-            endpoint.unregister()
+        for publisher in self._commands.values():
+            publisher.unregister()
+        for subscriber in self._subscribers:
+            subscriber.unregister()
         self.sim.close()
 
 
-def make_backend(kind, urdf_path: Path, sim_config_path: Path, seed: Optional[int] = None,
-                 timeout: float = 10.0) -> Backend:
-    """`kind` "ros" (a sim node must be running), "direct" (an in-process World seeded with `seed`),
-    or a Backend, returned as it is."""
+def make_backend(kind: Any, robot: RobotSpec, seed: int | None = None, timeout: float = 10.0) -> Backend:
+    """`kind` "ros" (a sim node must be running), "direct" (an in-process World of `robot` seeded with
+    `seed`), or a Backend, returned as it is."""
     if isinstance(kind, Backend):
         return kind
     if kind == "ros":
-        return RosBackend(timeout=timeout)
+        return RosBackend(robot, timeout=timeout)
     if kind == "direct":
-        return DirectBackend(urdf_path, sim_config_path, seed=seed or 0)
+        return DirectBackend(robot.urdf_path, robot.sim_config_path, seed=seed or 0)
     raise ValueError(f"backend must be 'ros' or 'direct', got {kind!r}")

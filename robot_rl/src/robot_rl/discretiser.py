@@ -6,9 +6,11 @@ were different states and nothing separated the numbers. Keys here are bin indic
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 FORMAT = "robot_rl.discretiser/1"
 
@@ -42,14 +44,14 @@ class Discretiser:
         self.edges = [np.linspace(lo, hi, b) for lo, hi, b in zip(self.low, self.high, self.bins)]
 
     @classmethod
-    def from_edges(cls, edges: Sequence[Sequence[float]], indices: Sequence[int] | None = None) -> Discretiser:
+    def from_edges(cls, edges: Sequence[ArrayLike], indices: Sequence[int] | None = None) -> Discretiser:
         """Explicit, increasing bin edges per dimension (e.g. a dead band around 0)."""
-        edges = [np.asarray(e, dtype=float) for e in edges]
-        for i, e in enumerate(edges):
+        arrays = [np.asarray(e, dtype=float) for e in edges]
+        for i, e in enumerate(arrays):
             if e.ndim != 1 or e.size < 2 or not np.all(np.diff(e) > 0):
                 raise ValueError(f"dimension {i}: edges must be at least 2 increasing numbers, got {e.tolist()}")
-        discretiser = cls([e[0] for e in edges], [e[-1] for e in edges], [e.size for e in edges], indices)
-        discretiser.edges = edges
+        discretiser = cls([e[0] for e in arrays], [e[-1] for e in arrays], [e.size for e in arrays], indices)
+        discretiser.edges = arrays
         return discretiser
 
     def _select(self, obs: Any) -> np.ndarray:
@@ -59,7 +61,7 @@ class Discretiser:
         if self.indices is None:
             if arr.size != len(self.low):
                 raise ValueError(f"observation has {arr.size} values, discretiser expects {len(self.low)}")
-            used, dims = arr, range(arr.size)
+            used, dims = arr, list(range(arr.size))
         else:
             if max(self.indices) >= arr.size:
                 raise ValueError(f"observation has {arr.size} values, indices {self.indices} need "

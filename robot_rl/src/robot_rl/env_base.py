@@ -1,43 +1,71 @@
-"""Gymnasium env base shared by the robots: lockstep steps over a Backend, task code in subclasses.
+"""Gymnasium env base shared by every task: lockstep steps over a Backend, task code in subclass hooks.
 
 A step is: the task turns the action into controller commands, the backend advances exactly
-`running_step` of sim time, and the task turns the readings into observation, reward and
+`running_step` of sim time, and the task turns the readings into observation, reward terms and
 termination. No wall-clock sleeps and no wait-until-the-robot-gets-there loops: a step always lasts
 running_step of sim time. `reset(seed=...)` also restarts sim time and the sensor noise
 (reset_simulation), so a seeded reset makes the episode reproducible; an unseeded reset uses
 reset_world, as openai_ros does for these robots. A robot spawned above the ground can be given
 `settle_time` of sim time to land (with its reset commands) before the first observation.
+
+The reward is the sum of the task's named terms, and every term is in `info` as `reward_<name>`
+(Gymnasium's hopper_v5 convention). Truncation is gymnasium's TimeLimit (registered with each task's
+max_episode_steps; `robot_rl.task.make_env` sets it to the params' nsteps), not the env's business.
 """
 from __future__ import annotations
 
 import abc
-from typing import Any, Dict, Optional, Tuple
+from typing import Any, ClassVar, Generic, TypeVar
 
 import gymnasium
 import numpy as np
+from gymnasium import spaces
 
-from .backends import Backend, Readings
+from .backends import Backend, Readings, make_backend
+from .params import TaskParams
+from .task import TaskSpec
+
+P = TypeVar("P", bound=TaskParams)
+StepOutcome = tuple[dict[str, float], bool, dict[str, Any]]   # reward terms, terminated, extra info
 
 
-class RobotEnv(gymnasium.Env, abc.ABC):
-    """Subclasses set a Discrete action_space and an observation_space, and implement the task hooks."""
+class RobotEnv(gymnasium.Env[np.ndarray, int], Generic[P], abc.ABC):
+    """A task's env: subclasses set `task` and implement the hooks below."""
 
+    task: ClassVar[TaskSpec[Any]]
     metadata = {"render_modes": []}
+    action_space: spaces.Discrete  # type: ignore[assignment]  # gymnasium.Env declares Space[int]
+    observation_space: spaces.Box
 
-    def __init__(self, backend: Backend, running_step: float, max_episode_steps: int, settle_time: float = 0.0):
-        if running_step < backend.time_step:
-            raise ValueError(f"running_step {running_step} s is shorter than one physics step ({backend.time_step} s)")
-        if max_episode_steps < 1:
-            raise ValueError(f"max_episode_steps must be >= 1, got {max_episode_steps}")
-        self.backend = backend
-        self.running_step = running_step
-        self.physics_steps = round(running_step / backend.time_step)
-        self.max_episode_steps = max_episode_steps
-        self.settle_steps = round(settle_time / backend.time_step)
-        self.elapsed_steps = 0
-        self.readings: Optional[Readings] = None
+    def __init__(self, backend: str | Backend = "ros", params: P | None = None, seed: int | None = None,
+                 ros_timeout: float = 10.0):
+        """`params`: the task's validated params (default: its config/<task>.yaml). `backend`: "ros" (a
+        running sim node), "direct" (an in-process World seeded with `seed`) or a Backend."""
+        task = self.task
+        self.params: P = params if params is not None else task.default_params()
+        if not isinstance(self.params, task.params_type):
+            raise TypeError(f"params must be {task.params_type.__name__}, got {type(self.params).__name__}")
+        self.backend = make_backend(backend, task.robot, seed=seed, timeout=ros_timeout)
+        time_step = self.backend.time_step
+        if self.params.running_step < time_step:
+            self.backend.close()
+            raise ValueError(f"running_step {self.params.running_step} s is shorter than one physics step "
+                             f"({time_step} s)")
+        self.running_step = self.params.running_step
+        self.physics_steps = round(self.running_step / time_step)
+        self.settle_steps = round(self._settle_time() / time_step)
+        self.readings: Readings | None = None
+        self.action_space, self.observation_space = self._spaces()
 
     # -- task hooks -----------------------------------------------------------------------------
+    @abc.abstractmethod
+    def _spaces(self) -> tuple[spaces.Discrete, spaces.Box]:
+        """(action_space, observation_space), from self.params."""
+
+    def _settle_time(self) -> float:
+        """Sim seconds the robot gets to land after a reset, before the first observation."""
+        return 0.0
+
     @abc.abstractmethod
     def _reset_commands(self) -> None:
         """Command the controllers' start values (before the robot settles)."""
@@ -47,42 +75,41 @@ class RobotEnv(gymnasium.Env, abc.ABC):
         """Reset the task's own state (start position...) from the first readings of the episode."""
 
     @abc.abstractmethod
-    def _apply_action(self, action: int) -> None:
-        """Turn the action into controller commands with self.backend.set_command."""
+    def _apply_action(self, action: int, readings: Readings) -> None:
+        """Turn the action into controller commands with self.backend.set_command; `readings` are the latest."""
 
     @abc.abstractmethod
     def _observe(self, readings: Readings) -> np.ndarray:
         """The observation (inside observation_space) from the readings."""
 
     @abc.abstractmethod
-    def _reward_and_termination(self, observation: np.ndarray) -> Tuple[float, bool, Dict[str, Any]]:
-        """(reward, terminated, info) for the step that produced `observation`."""
+    def _reward_and_termination(self, observation: np.ndarray, readings: Readings) -> StepOutcome:
+        """(reward terms by name, terminated, extra info) for the step that produced these readings."""
 
     # -- gymnasium API --------------------------------------------------------------------------
-    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None):
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
         super().reset(seed=seed)
         self.readings = self.backend.reset(restart_time=seed is not None)
-        self.elapsed_steps = 0
         self._reset_commands()
         if self.settle_steps:
             self.readings = self.backend.step(self.settle_steps)
         self._start_episode(self.readings)
         return self._observe(self.readings), {"sim_time": self.readings.stamp}
 
-    def step(self, action):
+    def step(self, action: int) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self.readings is None:
             raise gymnasium.error.ResetNeeded("call reset() before step()")
         # A direct range check: Discrete.contains costs as much as a tenth of a lockstep exchange.
         if not (isinstance(action, (int, np.integer)) and 0 <= action < self.action_space.n):
             raise ValueError(f"action {action!r} is not in {self.action_space}")
-        self._apply_action(int(action))
-        self.readings = self.backend.step(self.physics_steps)
-        self.elapsed_steps += 1
-        observation = self._observe(self.readings)
-        reward, terminated, info = self._reward_and_termination(observation)
-        truncated = not terminated and self.elapsed_steps >= self.max_episode_steps
-        info["sim_time"] = self.readings.stamp
-        return observation, float(reward), terminated, truncated, info
+        self._apply_action(int(action), self.readings)
+        self.readings = readings = self.backend.step(self.physics_steps)
+        observation = self._observe(readings)
+        terms, terminated, info = self._reward_and_termination(observation, readings)
+        for name, value in terms.items():
+            info[f"reward_{name}"] = value
+        info["sim_time"] = readings.stamp
+        return observation, float(sum(terms.values())), terminated, False, info
 
-    def close(self):
+    def close(self) -> None:
         self.backend.close()

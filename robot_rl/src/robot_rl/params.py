@@ -1,19 +1,27 @@
-"""Validation of rosparam/YAML parameters with one-line errors a node can print before exiting.
+"""Typed task parameters: frozen dataclasses built and validated from rosparam / YAML mappings.
 
-Every ParamError message is a single line starting with the parameter source (usually a file path).
+A task declares its parameters as a frozen, keyword-only dataclass whose fields carry their range
+(`param(low=..., high=...)`); nested dataclasses hold nested keys (`init_cube_pose: Point` reads
+`init_cube_pose/x, y, z`). `Params.from_mapping(values, source)` checks every field and raises a
+ParamError whose message is one line starting with `source` (usually the YAML file) and naming
+the key. Keys the dataclass does not declare are ignored: the hopper's parameters live at the
+root namespace, next to everything else on the parameter server.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
-from dataclasses import dataclass
-from typing import Any
+import typing
+from collections.abc import Mapping
+from dataclasses import MISSING, dataclass, field
+from typing import Any, TypeVar
 
 import yaml
 
 from robot_rl.atomic import StrPath
 
-_TYPES = (float, int, bool, str, dict)
 _MERGE_TAG = "tag:yaml.org,2002:merge"
+P = TypeVar("P", bound="Params")
 
 
 class ParamError(Exception):
@@ -21,98 +29,108 @@ class ParamError(Exception):
 
 
 @dataclass(frozen=True)
-class Param:
-    key: str
-    type: type
+class Range:
     low: float | None = None
     high: float | None = None
-    low_inclusive: bool = True
-    high_inclusive: bool = True
-    doc: str = ""
+    low_open: bool = False
+    high_open: bool = False
 
-    def __post_init__(self) -> None:
-        if self.type not in _TYPES:
-            raise ValueError(f"Param '{self.key}': type must be one of float, int, bool, str, dict")
-        if (self.low is not None or self.high is not None) and self.type not in (float, int):
-            raise ValueError(f"Param '{self.key}': a range needs type float or int")
+    def contains(self, value: float) -> bool:
+        if self.low is not None and (value <= self.low if self.low_open else value < self.low):
+            return False
+        return not (self.high is not None and (value >= self.high if self.high_open else value > self.high))
 
-    def range_text(self) -> str:
-        """The allowed range in interval notation, e.g. "(0.0, 1.0]"."""
-        lo = "-inf" if self.low is None else repr(self.low)
-        hi = "inf" if self.high is None else repr(self.high)
-        return (f"{'[' if self.low_inclusive else '('}{lo}, {hi}"
-                f"{']' if self.high_inclusive else ')'}")
+    def __str__(self) -> str:
+        low = "-inf" if self.low is None else repr(self.low)
+        high = "inf" if self.high is None else repr(self.high)
+        return f"{'(' if self.low_open else '['}{low}, {high}{')' if self.high_open else ']'}"
 
 
-def _convert(p: Param, value: Any, source: str) -> Any:
-    ok = isinstance(value, p.type) and not (isinstance(value, bool) and p.type is not bool)
-    if p.type is float and isinstance(value, int) and not isinstance(value, bool):
-        value, ok = float(value), True
-    if not ok:
-        raise ParamError(f"{source}: parameter '{p.key}' expected {p.type.__name__}, "
+def param(*, low: float | None = None, high: float | None = None, low_open: bool = False, high_open: bool = False,
+          choices: tuple[str, ...] | None = None, default: Any = MISSING, doc: str = "") -> Any:
+    """A dataclass field with its allowed range (numbers) or choices (strings) and a one-line doc."""
+    metadata = {"range": Range(low, high, low_open, high_open), "choices": choices, "doc": doc}
+    return field(default=default, metadata=metadata)
+
+
+def _convert(kind: type, value: Any, key: str, source: str) -> Any:
+    if kind is float and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if not isinstance(value, kind) or (isinstance(value, bool) and kind is not bool):
+        raise ParamError(f"{source}: parameter '{key}' expected {kind.__name__}, "
                          f"got {value!r} ({type(value).__name__})")
-    if p.type is float and math.isnan(value):
-        raise ParamError(f"{source}: parameter '{p.key}' is NaN")
-    if p.type is dict:
-        return dict(value)
+    if isinstance(value, float) and math.isnan(value):
+        raise ParamError(f"{source}: parameter '{key}' is NaN")
     return value
 
 
-def _in_range(p: Param, value: float) -> bool:
-    if p.low is not None and (value < p.low if p.low_inclusive else value <= p.low):
-        return False
-    if p.high is not None and (value > p.high if p.high_inclusive else value >= p.high):
-        return False
-    return True
+def _build(cls: type[Any], values: Mapping[str, Any], source: str, prefix: str) -> Any:
+    if not isinstance(values, Mapping):
+        raise ParamError(f"{source}: parameter '{prefix.rstrip('/') or '/'}' must be a mapping, "
+                         f"got {values!r} ({type(values).__name__})")
+    hints = typing.get_type_hints(cls)
+    kwargs = {}
+    for f in dataclasses.fields(cls):
+        key = prefix + f.name
+        if f.name not in values:
+            if f.default is MISSING:
+                raise ParamError(f"{source}: missing parameter '{key}'")
+            continue
+        kind = hints[f.name]
+        if isinstance(kind, type) and dataclasses.is_dataclass(kind):
+            kwargs[f.name] = _build(kind, values[f.name], source, key + "/")
+            continue
+        value = _convert(kind, values[f.name], key, source)
+        value_range, choices = f.metadata.get("range"), f.metadata.get("choices")
+        if kind in (int, float) and value_range is not None and not value_range.contains(value):
+            raise ParamError(f"{source}: parameter '{key}' = {value!r} out of range {value_range}")
+        if choices is not None and value not in choices:
+            raise ParamError(f"{source}: parameter '{key}' = {value!r} is not one of {', '.join(choices)}")
+        kwargs[f.name] = value
+    return cls(**kwargs)
 
 
-def _unflatten(values: dict[str, Any], key: str) -> dict[str, Any] | None:
-    """Rebuild the dict under `key` from flattened "key/..." entries, or None if there are none."""
-    prefix = key + "/"
-    sub = {k[len(prefix):]: v for k, v in values.items() if k.startswith(prefix)}
-    if not sub:
-        return None
-    nested: dict[str, Any] = {}
-    for path, v in sub.items():
-        *parents, leaf = path.split("/")
-        node = nested
-        for part in parents:
-            node = node.setdefault(part, {})
-        node[leaf] = v
-    return nested
+class Params:
+    """Base of the parameter dataclasses (declare them @dataclass(frozen=True, kw_only=True))."""
+
+    @classmethod
+    def from_mapping(cls: type[P], values: Mapping[str, Any], source: str) -> P:
+        """Validate a nested mapping (as rosparam or YAML give it); ParamError names the key and `source`."""
+        params = _build(cls, values, source, "")
+        params.check(source)
+        return params
+
+    def check(self, source: str) -> None:
+        """Checks across fields; raise ParamError starting with `source`."""
+
+    def to_mapping(self) -> dict[str, Any]:
+        """The nested mapping from_mapping reads (what params.yaml of a run holds)."""
+        return dataclasses.asdict(self)  # type: ignore[call-overload]
+
+    def with_changes(self: P, source: str, **changes: Any) -> P:
+        """A copy with some keys changed, validated again (errors name `source`)."""
+        return type(self).from_mapping({**self.to_mapping(), **changes}, source)
 
 
-def validate(values: dict[str, Any], spec: list[Param], source: str) -> dict[str, Any]:
-    """Check `values` (flat, "/"-separated keys) against `spec`.
-
-    Returns a copy of `values` with the specified entries converted (int -> float where float is
-    expected). A dict-typed Param also accepts its flattened form ("key/sub" entries).
-    """
-    out = dict(values)
-    for p in spec:
-        if p.key in values:
-            value = values[p.key]
-        elif p.type is dict and (nested := _unflatten(values, p.key)) is not None:
-            value = nested
-        else:
-            raise ParamError(f"{source}: missing parameter '{p.key}'")
-        value = _convert(p, value, source)
-        if p.type in (float, int) and not _in_range(p, value):
-            raise ParamError(f"{source}: parameter '{p.key}' = {value!r} out of range {p.range_text()}")
-        out[p.key] = value
-    return out
+@dataclass(frozen=True, kw_only=True)
+class Point(Params):
+    x: float
+    y: float
+    z: float
 
 
-def flatten(nested: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    """{"a": {"b": 1}} -> {"a/b": 1}; empty dicts stay as leaves."""
-    flat: dict[str, Any] = {}
-    for k, v in nested.items():
-        key = f"{prefix}{k}"
-        if isinstance(v, dict) and v:
-            flat.update(flatten(v, key + "/"))
-        else:
-            flat[key] = v
-    return flat
+@dataclass(frozen=True, kw_only=True)
+class TaskParams(Params):
+    """What every task's YAML holds: the tutorials' Q-learning keys and the env step."""
+
+    alpha: float = param(low=0.0, high=1.0, doc="learning rate")
+    gamma: float = param(low=0.0, high=1.0, doc="discount factor")
+    epsilon: float = param(low=0.0, high=1.0, doc="initial exploration probability")
+    epsilon_discount: float = param(low=0.0, high=1.0, doc="epsilon *= this before every episode (while > 0.05)")
+    nepisodes: int = param(low=1, doc="episodes to train")
+    nsteps: int = param(low=1, doc="env steps per episode at most")
+    running_step: float = param(low=0.0, low_open=True, doc="sim seconds per env step")
+    seed: int = param(low=0, default=0, doc="seeds the Q-learning RNG (exploration, tie breaks)")
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):
@@ -143,8 +161,8 @@ def load_yaml_file(path: StrPath) -> dict[str, Any]:
             text = f.read()
     except FileNotFoundError:
         raise ParamError(f"{path}: no such file") from None
-    except OSError as e:
-        raise ParamError(f"{path}: cannot read: {e.strerror}") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise ParamError(f"{path}: cannot read: {getattr(e, 'strerror', None) or e}") from None
     loader = _UniqueKeyLoader(text)
     loader.path = str(path)
     try:

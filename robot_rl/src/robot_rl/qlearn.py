@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import json
 import random
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Literal, overload
 
 from robot_rl.atomic import StrPath, write_json_atomic
 
@@ -69,6 +70,12 @@ class QLearn:
         if q.count(maxQ) > 1:
             return self.rng.choice([i for i in range(len(self.actions)) if q[i] == maxQ])
         return q.index(maxQ)
+
+    @overload
+    def chooseAction(self, state: str, return_q: Literal[False] = False) -> int: ...
+
+    @overload
+    def chooseAction(self, state: str, return_q: Literal[True]) -> tuple[int, list[float]]: ...
 
     def chooseAction(self, state: str, return_q: bool = False) -> int | tuple[int, list[float]]:
         """Epsilon-noise action choice; returns (action, q) when `return_q`."""

@@ -1,7 +1,8 @@
-"""Training results on disk: <root>/<robot>/<run>/ plus a <root>/<robot>/latest symlink.
+"""Training results on disk: <root>/<results name>/<run>/ plus a <root>/<results name>/latest symlink.
 
 A run directory holds params.yaml, episodes.csv, qtable.json (checkpoint), learning_curve.png and
 summary.json. Everything except the append-only episodes.csv is written atomically; no pickle.
+episodes.csv has the columns of every task (COLUMNS) followed by the task's own metrics.
 """
 from __future__ import annotations
 
@@ -9,19 +10,21 @@ import csv
 import io
 import json
 import os
-from dataclasses import astuple, dataclass
-from datetime import datetime, timezone
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import yaml
 
-from robot_rl.atomic import (StrPath, symlink_atomic, write_bytes_atomic, write_json_atomic,
-                             write_text_atomic)
+from robot_rl.atomic import StrPath, symlink_atomic, write_bytes_atomic, write_json_atomic, write_text_atomic
 
 COLUMNS = ("episode", "steps", "return", "epsilon", "sim_time", "wall_time")
 LATEST = "latest"
+MOVING_AVERAGE = 50
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -33,14 +36,25 @@ class EpisodeRecord:
     epsilon: float
     sim_time: float
     wall_time: float
+    metrics: Mapping[str, float | bool] = field(default_factory=dict)  # the task's, in its columns' order
+
+    def row(self) -> list[Any]:
+        return [self.episode, self.steps, self.return_, self.epsilon, self.sim_time, self.wall_time,
+                *self.metrics.values()]
 
 
-def _csv_text(records: list[EpisodeRecord]) -> str:
-    buf = io.StringIO()
-    writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow(COLUMNS)
-    writer.writerows(astuple(r) for r in records)
-    return buf.getvalue()
+def _metric_value(text: str) -> float | bool:
+    """A metric cell: "True"/"False" (a rate's episode) or a number."""
+    return {"True": True, "False": False}[text] if text in ("True", "False") else float(text)
+
+
+def aggregate(values: Mapping[str, Sequence[float | bool]]) -> dict[str, float | None]:
+    """Per metric over episodes: `<name>_rate` for yes/no metrics, `mean_<name>` for numbers (None if empty)."""
+    out: dict[str, float | None] = {}
+    for name, column in values.items():
+        rate = bool(column) and all(isinstance(v, bool) for v in column)
+        out[f"{name}_rate" if rate else f"mean_{name}"] = float(np.mean(column)) if len(column) else None
+    return out
 
 
 def _check_name(what: str, name: str) -> None:
@@ -48,8 +62,16 @@ def _check_name(what: str, name: str) -> None:
         raise ValueError(f"invalid {what} name {name!r}")
 
 
+def moving_average(values: Sequence[float], window: int = MOVING_AVERAGE) -> np.ndarray:
+    """Mean of each run of `window` values (fewer at the start: the mean of those so far)."""
+    sums = np.cumsum(np.asarray(values, dtype=float))
+    counts = np.minimum(np.arange(1, len(sums) + 1), window)
+    sums[window:] = sums[window:] - sums[:-window]
+    return sums / counts
+
+
 class RunDirectory:
-    """One training run's directory; `robot` and `name` are taken from its path."""
+    """One training run's directory; `robot` (its results name) and `name` are taken from its path."""
 
     def __init__(self, path: StrPath) -> None:
         self.path = Path(path)
@@ -77,7 +99,7 @@ class RunDirectory:
         return self.path / "summary.json"
 
     @classmethod
-    def create(cls, root: StrPath, robot: str, params: dict[str, Any],
+    def create(cls, root: StrPath, robot: str, params: dict[str, Any], metric_names: Sequence[str] = (),
                run_name: str | None = None) -> RunDirectory:
         """Make a new run directory and point `latest` at it.
 
@@ -92,7 +114,7 @@ class RunDirectory:
             name = run_name
             (robot_dir / name).mkdir()
         else:
-            base = datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S")
+            base = datetime.now(UTC).strftime("%Y%m%d-%H%M%S")
             name, n = base, 0
             while True:
                 try:
@@ -103,7 +125,7 @@ class RunDirectory:
                     name = f"{base}-{n}"
         run = cls(robot_dir / name)
         write_text_atomic(run.params_yaml, yaml.safe_dump(params, sort_keys=True, default_flow_style=False))
-        write_text_atomic(run.episodes_csv, _csv_text([]))
+        write_text_atomic(run.episodes_csv, ",".join((*COLUMNS, *metric_names)) + "\n")
         symlink_atomic(name, robot_dir / LATEST)
         return run
 
@@ -116,12 +138,24 @@ class RunDirectory:
             raise FileNotFoundError(f"no previous run under {robot_dir}: start without resume")
         return cls(robot_dir / Path(os.readlink(link)).name)
 
+    @property
+    def metric_names(self) -> tuple[str, ...]:
+        """The task metrics' columns of episodes.csv."""
+        return self._header()[len(COLUMNS):]
+
+    def _header(self) -> tuple[str, ...]:
+        with open(self.episodes_csv, encoding="utf-8") as f:
+            header = tuple(next(csv.reader([f.readline()]), []))
+        if header[:len(COLUMNS)] != COLUMNS:
+            raise ValueError(f"{self.episodes_csv}: header must start with {','.join(COLUMNS)}")
+        return header
+
     def append_episode(self, record: EpisodeRecord) -> None:
         """Append one row to episodes.csv, flushed and fsynced."""
         if record.episode < 1:
             raise ValueError(f"episode numbers are 1-based, got {record.episode}")
         buf = io.StringIO()
-        csv.writer(buf, lineterminator="\n").writerow(astuple(record))
+        csv.writer(buf, lineterminator="\n").writerow(record.row())
         with open(self.episodes_csv, "a", encoding="utf-8", newline="") as f:
             f.write(buf.getvalue())
             f.flush()
@@ -133,14 +167,16 @@ class RunDirectory:
         text = self.episodes_csv.read_text(encoding="utf-8")
         lines = text.split("\n")[:-1]  # drops "" after the final newline, or a torn last line
         rows = list(csv.reader(lines))
-        if not rows or tuple(rows[0]) != COLUMNS:
-            raise ValueError(f"{self.episodes_csv}: header must be {','.join(COLUMNS)}")
+        header = self._header()
         records = []
         for lineno, row in enumerate(rows[1:], start=2):
             try:
-                episode, steps, ret, eps, sim_time, wall_time = row
-                records.append(EpisodeRecord(int(episode), int(steps), float(ret), float(eps),
-                                             float(sim_time), float(wall_time)))
+                if len(row) != len(header):
+                    raise ValueError(f"{len(row)} columns, the header has {len(header)}")
+                episode, steps, ret, eps, sim_time, wall_time, *metrics = row
+                named = dict(zip(header[len(COLUMNS):], map(_metric_value, metrics)))
+                records.append(EpisodeRecord(int(episode), int(steps), float(ret), float(eps), float(sim_time),
+                                             float(wall_time), named))
             except ValueError as e:
                 raise ValueError(f"{self.episodes_csv}:{lineno}: bad row {row!r}: {e}") from None
         return records
@@ -150,48 +186,73 @@ class RunDirectory:
         if not isinstance(state.get("episode"), int) or state["episode"] < 0:
             raise ValueError(f"checkpoint state needs an int 'episode' >= 0, got {state.get('episode')!r}")
         write_json_atomic(self.qtable_json,
-                          {**state, "written_at": datetime.now(timezone.utc).isoformat()})
+                          {**state, "written_at": datetime.now(UTC).isoformat()})
 
     def load_checkpoint(self) -> dict[str, Any]:
+        """qtable.json as a dict; FileNotFoundError or ValueError naming the file if it cannot be."""
         try:
             text = self.qtable_json.read_text(encoding="utf-8")
         except FileNotFoundError:
             raise FileNotFoundError(f"no checkpoint {self.qtable_json}: nothing to resume from") from None
+        except UnicodeDecodeError:
+            raise ValueError(f"{self.qtable_json}: not a checkpoint (not UTF-8 text)") from None
         try:
-            return json.loads(text)
+            state = json.loads(text)
         except json.JSONDecodeError as e:
             raise ValueError(f"{self.qtable_json}: invalid JSON: {e}") from None
-
-    def prepare_resume(self) -> dict[str, Any]:
-        """Load the checkpoint and drop episodes.csv rows logged after it (they will be re-run)."""
-        state = self.load_checkpoint()
-        kept = [r for r in self.read_episodes() if r.episode <= state["episode"]]
-        write_text_atomic(self.episodes_csv, _csv_text(kept))
+        if not isinstance(state, dict):
+            raise ValueError(f"{self.qtable_json}: not a checkpoint (a JSON {type(state).__name__}, not an object)")
         return state
 
-    def write_learning_curve(self) -> None:
-        """Plot return per episode and its moving average (window min(50, n)) to learning_curve.png."""
+    def prepare_resume(self, restore: Callable[[dict[str, Any]], T]) -> T:
+        """Load the checkpoint and restore it with `restore` (which raises ValueError on anything wrong),
+        then drop episodes.csv rows logged after it (they will be re-run). Nothing is written unless
+        the whole checkpoint restored."""
+        state = self.load_checkpoint()
+        try:
+            restored = restore(state)
+        except (KeyError, TypeError, ValueError) as error:
+            reason = f"missing {error}" if isinstance(error, KeyError) else str(error)
+            raise ValueError(f"{self.qtable_json}: not a usable checkpoint: {reason}") from None
+        episode = state["episode"]
+        records = self.read_episodes()
+        if len([r for r in records if r.episode <= episode]) < episode:
+            raise ValueError(f"{self.episodes_csv} has {len(records)} episodes, fewer than the {episode} of the "
+                             f"checkpoint {self.qtable_json}")
+        header = ",".join(self._header()) + "\n"
+        buf = io.StringIO()
+        csv.writer(buf, lineterminator="\n").writerows(r.row() for r in records if r.episode <= episode)
+        write_text_atomic(self.episodes_csv, header + buf.getvalue())
+        return restored
+
+    def write_learning_curve(self, metric: str | None = None) -> None:
+        """Plot return, the task metric `metric` (if given) and epsilon per episode, each with its moving
+        average over MOVING_AVERAGE episodes, to learning_curve.png."""
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
         records = self.read_episodes()
-        fig, ax = plt.subplots(figsize=(8, 4.5))
+        panels = [("return", [r.return_ for r in records])]
+        if metric is not None:
+            panels.append((metric, [float(r.metrics.get(metric, np.nan)) for r in records]))
+        panels.append(("epsilon", [r.epsilon for r in records]))
+        fig, axes = plt.subplots(len(panels), 1, figsize=(8, 2.2 + 2.0 * len(panels)), sharex=True)
         try:
-            if records:
-                x = np.array([r.episode for r in records])
-                y = np.array([r.return_ for r in records])
-                window = min(50, len(y))
-                avg = np.convolve(y, np.ones(window) / window, mode="valid")
-                ax.plot(x, y, ".", alpha=0.4, label="return")
-                ax.plot(x[window - 1:], avg, "-", label=f"moving average ({window})")
-                ax.legend(loc="best")
-            else:
-                ax.text(0.5, 0.5, "no episodes yet", ha="center", va="center", transform=ax.transAxes)
-            ax.set_xlabel("episode")
-            ax.set_ylabel("return")
-            ax.set_title(f"{self.robot} / {self.name}")
-            ax.grid(True, alpha=0.3)
+            x = np.array([r.episode for r in records])
+            for ax, (label, values) in zip(axes, panels):
+                if records:
+                    ax.plot(x, values, ".", alpha=0.4, markersize=3, label=label)
+                    if label != "epsilon":
+                        ax.plot(x, moving_average(values), "-", label=f"moving average ({MOVING_AVERAGE})")
+                        ax.legend(loc="best", fontsize="small")
+                else:
+                    ax.text(0.5, 0.5, "no episodes yet", ha="center", va="center", transform=ax.transAxes)
+                ax.set_ylabel(label)
+                ax.grid(True, alpha=0.3)
+            axes[-1].set_xlabel("episode")
+            axes[0].set_title(f"{self.robot} / {self.name}")
+            fig.tight_layout()
             buf = io.BytesIO()
             fig.savefig(buf, format="png", dpi=100)
         finally:

@@ -24,21 +24,21 @@ import tempfile
 import time
 from pathlib import Path
 
-from robot_rl.processes import REPO, Processes, RosMaster, launch_args
+from hopper_training.monoped_env import STAY_UP
+from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from robot_rl.task import make_env
+from workspace_tools.processes import Processes, RosMaster, launch_args
 
+# The task each robot is measured on, env steps per repetition, Gazebo-style steps per real-time factor.
 ROBOTS = {
-    "cube": {"env": "MovingCubeOneDiskWalk-v0", "package": "moving_cube_training", "sim": "launch/cube_sim.launch",
-             "steps": 3000, "gazebo_steps": {1.0: 20, 0.0: 50}},
-    "hopper": {"env": "Monoped-v0", "package": "hopper_training", "sim": "launch/hopper_sim.launch",
-               "steps": 10000, "gazebo_steps": {1.0: 100, 0.0: 200}},
+    "cube": {"task": ONE_DISK_WALK, "steps": 3000, "gazebo_steps": {1.0: 20, 0.0: 50}},
+    "hopper": {"task": STAY_UP, "steps": 10000, "gazebo_steps": {1.0: 100, 0.0: 200}},
 }
 
 
 # -- workers: each runs in its own process and prints one JSON line -------------------------------
 def _make_env(robot: str, backend: str):
-    import gymnasium
-    __import__(ROBOTS[robot]["package"])
-    return gymnasium.make(ROBOTS[robot]["env"], backend=backend).unwrapped
+    return make_env(ROBOTS[robot]["task"], backend=backend)
 
 
 def worker_lockstep(robot: str, backend: str, steps: int) -> dict:
@@ -56,7 +56,7 @@ def worker_lockstep(robot: str, backend: str, steps: int) -> dict:
             env.reset()
     elapsed = time.perf_counter() - start
     env.close()
-    return {"steps_per_s": steps / elapsed, "running_step": env.running_step}
+    return {"steps_per_s": steps / elapsed, "running_step": env.unwrapped.running_step}
 
 
 def worker_gazebo_style(robot: str, steps: int) -> dict:
@@ -68,7 +68,7 @@ def worker_gazebo_style(robot: str, steps: int) -> dict:
     from rosgraph_msgs.msg import Clock
 
     rospy.init_node("bench_gazebo_style_client")
-    env = _make_env(robot, "ros")  # only for its publishers, subscribers and action mapping
+    env = _make_env(robot, "ros").unwrapped  # only for its publishers, subscribers and action mapping
     backend, sim = env.backend, env.backend.sim
     clock = {"now": rospy.Time(0)}
     changed = threading.Condition()
@@ -86,9 +86,9 @@ def worker_gazebo_style(robot: str, steps: int) -> dict:
         with changed:
             target = clock["now"] + running_step
         sim.unpause()
-        env._apply_action(int(rng.integers(env.action_space.n)))
+        env._apply_action(int(rng.integers(env.action_space.n)), env.readings)
         with changed:
-            if not changed.wait_for(lambda: clock["now"] >= target, 10.0):
+            if not changed.wait_for(lambda target=target: clock["now"] >= target, 10.0):
                 raise RuntimeError("/clock did not advance by running_step within 10 s")
         sim.pause()
         readings = backend.latest()
@@ -110,7 +110,7 @@ def _run_worker(processes: Processes, args: list, timeout: float) -> dict:
 def _with_sim(log_dir: Path, robot: str, real_time_factor: float, worker_args: list) -> dict:
     master = RosMaster(log_dir)
     try:
-        master.start(["roslaunch", ROBOTS[robot]["sim"], *launch_args(
+        master.start([*ROBOTS[robot]["task"].robot.sim_launch.split(), *launch_args(
             paused="true", real_time_factor=real_time_factor, robot_state_publisher="false")],
             stdout=(log_dir / "sim.log").open("w"), stderr=subprocess.STDOUT)
         return _run_worker(master, worker_args, timeout=600)
@@ -122,7 +122,7 @@ def _cube_training_wall_time(log_dir: Path, episodes: int) -> float:
     master = RosMaster(log_dir)
     results = log_dir / "results"
     try:
-        result = master.run(["rosrun", "robot_rl", "roslaunch_checked.py", "launch/main.launch",
+        result = master.run(["rosrun", "workspace_tools", "roslaunch_checked.py", "moving_cube_training", "main.launch",
                              *launch_args(results_dir=results, nepisodes=episodes)], timeout=900)
     finally:
         master.close()
@@ -198,8 +198,8 @@ def print_table(report: dict) -> None:
         print(f"| {label:42} | {fmt.format(report['cube'][key]):>8} | {fmt.format(report['hopper'][key]):>8} |")
     for robot in ROBOTS:
         r = report[robot]
-        print(f"{robot}: lockstep over ROS is {r['ros_lockstep_steps_per_s'] / r['gazebo_style_rtf1_steps_per_s']:.0f}x "
-              f"the Gazebo-style step at RTF 1")
+        ratio = r['ros_lockstep_steps_per_s'] / r['gazebo_style_rtf1_steps_per_s']
+        print(f"{robot}: lockstep over ROS is {ratio:.0f}x the Gazebo-style step at RTF 1")
     print(f"cube: 100 training episodes over ROS in {report['cube_100_episodes_wall_s']:.1f} s")
 
 
@@ -212,7 +212,7 @@ def main(argv) -> int:
         return 0
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--reps", type=int, default=5, help="repetitions (fresh processes each); figures are medians")
-    parser.add_argument("--output", type=Path, default=REPO / "bench_results.json")
+    parser.add_argument("--output", type=Path, default=Path("bench_results.json"))
     args = parser.parse_args(argv)
     print_table(orchestrate(args.reps, args.output))
     print(f"\nwritten: {args.output}")

@@ -9,11 +9,8 @@ import socket
 import subprocess
 import time
 from pathlib import Path
-from typing import List
 
 import rosgraph
-
-REPO = Path(__file__).resolve().parents[3]
 
 
 def free_port() -> int:
@@ -41,16 +38,17 @@ def stop(process: subprocess.Popen, timeout: float = 10.0) -> None:
 class Processes:
     """Processes started for one test, with one environment; close() ends them all by PID."""
 
-    def __init__(self, log_dir: Path, **env: str):
+    def __init__(self, log_dir: Path, cwd: Path | None = None, **env: str):
         self.env = dict(os.environ, ROS_LOG_DIR=str(log_dir), ROS_HOME=str(log_dir), **env)
-        self._processes: List[subprocess.Popen] = []
+        self.cwd = cwd
+        self._processes: list[subprocess.Popen] = []
 
-    def start(self, command: List[str], **kwargs) -> subprocess.Popen:
-        process = subprocess.Popen(command, env=self.env, cwd=REPO, start_new_session=True, **kwargs)
+    def start(self, command: list[str], **kwargs) -> subprocess.Popen:
+        process = subprocess.Popen(command, env=self.env, cwd=self.cwd, start_new_session=True, **kwargs)
         self._processes.append(process)
         return process
 
-    def run(self, command: List[str], timeout: float) -> subprocess.CompletedProcess:
+    def run(self, command: list[str], timeout: float) -> subprocess.CompletedProcess:
         """Run a command to completion (bounded), capturing its output."""
         process = self.start(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
@@ -58,7 +56,8 @@ class Processes:
         except subprocess.TimeoutExpired:
             stop(process)
             stdout, stderr = process.communicate()
-            raise AssertionError(f"{' '.join(command)} did not finish within {timeout} s\n{stdout}\n{stderr}")
+            raise AssertionError(f"{' '.join(command)} did not finish within {timeout} s\n{stdout}\n{stderr}") \
+                from None
         return subprocess.CompletedProcess(command, process.returncode, stdout, stderr)
 
     def close(self) -> None:
@@ -69,10 +68,10 @@ class Processes:
 class RosMaster(Processes):
     """A rosmaster on a free loopback port; processes started here talk to it."""
 
-    def __init__(self, log_dir: Path):
+    def __init__(self, log_dir: Path, cwd: Path | None = None):
         port = free_port()
         self.uri = f"http://127.0.0.1:{port}"
-        super().__init__(log_dir, ROS_MASTER_URI=self.uri, ROS_HOSTNAME="127.0.0.1")
+        super().__init__(log_dir, cwd, ROS_MASTER_URI=self.uri, ROS_HOSTNAME="127.0.0.1", ROS_IP="127.0.0.1")
         master = self.start(["rosmaster", "--core", "-p", str(port)])
         deadline = time.monotonic() + 20.0
         while True:  # bounded poll: rosmaster has no readiness signal
@@ -82,7 +81,7 @@ class RosMaster(Processes):
             except OSError:
                 if master.poll() is not None or time.monotonic() > deadline:
                     self.close()
-                    raise RuntimeError(f"rosmaster on {self.uri} did not come up within 20 s")
+                    raise RuntimeError(f"rosmaster on {self.uri} did not come up within 20 s") from None
                 time.sleep(0.05)
 
     @property
@@ -90,6 +89,6 @@ class RosMaster(Processes):
         return rosgraph.Master("/pytest", master_uri=self.uri)
 
 
-def launch_args(**args: object) -> List[str]:
+def launch_args(**args: object) -> list[str]:
     """roslaunch's `name:=value` arguments."""
     return [f"{key}:={value}" for key, value in args.items()]

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """roslaunch a file and exit with the first non-zero exit code of any of its nodes.
 
-  roslaunch_checked.py LAUNCH_FILE [arg:=value ...]
+  roslaunch_checked.py [PACKAGE] LAUNCH_FILE [arg:=value ...]
 
 Plain roslaunch exits 0 even when a required node (here: a training node) failed; ./ws run uses
 this so that a failed training is a failed command. Starts a master if none is running, as
@@ -28,10 +28,12 @@ def main(argv) -> int:
     if not argv:
         print(__doc__, file=sys.stderr)
         return 2
+    launch_file = roslaunch.rlutil.resolve_launch_arguments(argv)[0]
+    launch_args = [arg for arg in argv if ":=" in arg]
     uuid = roslaunch.rlutil.get_or_generate_uuid(None, False)
     roslaunch.configure_logging(uuid)
     failed = FailedNodes()
-    parent = roslaunch.parent.ROSLaunchParent(uuid, [(argv[0], argv[1:])], process_listeners=[failed])
+    parent = roslaunch.parent.ROSLaunchParent(uuid, [(launch_file, launch_args)], process_listeners=[failed])
     parent.start()
     try:
         parent.spin()

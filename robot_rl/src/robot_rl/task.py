@@ -1,0 +1,146 @@
+"""A task as one typed unit: what the env, training, evaluation, registration and the bench read.
+
+Each robot package exports its TaskSpec(s) and registers them (`register_tasks`) when imported.
+A spec names its gymnasium env (id, entry point, max_episode_steps), its frozen params dataclass
+and default YAML (`<package>/config/<name>.yaml`), its Q-learning state key, its results folder,
+its reward topics, the robot (URDF and sim config, found through ROS package paths), and the
+per-episode metrics that training logs and evaluation reports.
+"""
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Generic, Protocol, TypeVar
+
+import gymnasium
+
+from .params import ParamError, TaskParams, load_yaml_file
+
+P = TypeVar("P", bound=TaskParams)
+MetricValue = float | bool
+
+
+class ResourceError(RuntimeError):
+    """A ROS package (URDF, config) cannot be found."""
+
+
+@functools.cache
+def package_path(package: str) -> Path:
+    """The directory of a ROS package (source or install space), found through ROS_PACKAGE_PATH."""
+    import rospkg
+    try:
+        return Path(rospkg.RosPack().get_path(package))
+    except rospkg.ResourceNotFound:
+        raise ResourceError(f"ROS package {package!r} not found on ROS_PACKAGE_PATH; source the workspace "
+                            f"(./ws exec ..., or `source devel/setup.bash`)") from None
+
+
+class StateKey(Protocol):
+    """Observation -> Q-table state key; to_dict() is saved with the table so that a mismatch shows."""
+
+    def key(self, observation: Any) -> str: ...
+
+    def to_dict(self) -> dict[str, Any]: ...
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """A robot of the sim: its URDF and its config/<robot>_sim.yaml, both in its description package."""
+
+    description_package: str
+    urdf: str            # relative to the package
+    sim_config: str      # relative to the package
+    sim_launch: str      # how a user starts its sim, for error messages
+
+    @property
+    def urdf_path(self) -> Path:
+        return package_path(self.description_package) / self.urdf
+
+    @property
+    def sim_config_path(self) -> Path:
+        return package_path(self.description_package) / self.sim_config
+
+
+@dataclass(frozen=True)
+class Episode:
+    """What a finished episode hands to a task's metrics."""
+
+    steps: int
+    return_: float
+    terminated: bool
+    duration: float               # sim seconds
+    info: Mapping[str, Any]       # the last step's info
+
+
+@dataclass(frozen=True)
+class TaskSpec(Generic[P]):
+    name: str                                   # `task:=` in the launch files; the default YAML is config/<name>.yaml
+    env_id: str
+    entry_point: str                            # "module:EnvClass"
+    package: str                                # the robot's training package
+    robot: RobotSpec
+    params_type: type[P]
+    params_namespace: str                       # where the YAML's keys live on the parameter server
+    state_key: Callable[[P], StateKey]
+    results_name: str                           # runs go to <results_dir>/<results_name>/
+    reward_topic: str
+    episode_reward_topic: str
+    publish_cumulated_reward: bool              # the hopper tutorial publishes the running sum each step
+    max_episode_steps: int                      # registered; equals the default YAML's nsteps
+    metrics: Callable[[Episode], dict[str, MetricValue]]   # per episode (also of an empty one); bools are rates
+    headline_metric: str                        # the metric progress lines show
+    eval_horizon_s: float                       # evaluate.py's default horizon, in sim seconds
+
+    @property
+    def metric_names(self) -> tuple[str, ...]:
+        """The names `metrics` returns (read from an empty episode)."""
+        return tuple(self.metrics(Episode(steps=0, return_=0.0, terminated=False, duration=0.0, info={})))
+
+    @property
+    def config_path(self) -> Path:
+        return package_path(self.package) / "config" / f"{self.name}.yaml"
+
+    def params_from_document(self, document: Mapping[str, Any], source: str) -> P:
+        """The params of a YAML document laid out as on the parameter server (under params_namespace)."""
+        values: Any = document
+        for part in self.params_namespace.strip("/").split("/"):
+            if part:
+                values = values.get(part, {}) if isinstance(values, Mapping) else {}
+        return self.params_type.from_mapping(values, source)
+
+    def load_params(self, path: Path) -> P:
+        return self.params_from_document(load_yaml_file(path), str(path))
+
+    def default_params(self) -> P:
+        return self.load_params(self.config_path)
+
+
+TASKS: dict[str, TaskSpec[Any]] = {}
+
+
+def register_tasks(*specs: TaskSpec[Any]) -> None:
+    """Register each spec's env with gymnasium (with its max_episode_steps) and in TASKS."""
+    for spec in specs:
+        TASKS[spec.env_id] = spec
+        if spec.env_id not in gymnasium.registry:
+            gymnasium.register(id=spec.env_id, entry_point=spec.entry_point,
+                               max_episode_steps=spec.max_episode_steps)
+
+
+def find_task(tasks: list[TaskSpec[Any]], name: str) -> TaskSpec[Any]:
+    """The task called `name` (its name or env id) among `tasks`."""
+    for spec in tasks:
+        if name in (spec.name, spec.env_id):
+            return spec
+    known = ", ".join(spec.name for spec in tasks)
+    raise ParamError(f"unknown task {name!r} (known: {known})")
+
+
+def make_env(spec: TaskSpec[P], *, params: P | None = None, backend: Any = "direct", seed: int | None = None,
+             max_episode_steps: int | None = None, **kwargs: Any) -> gymnasium.Env[Any, Any]:
+    """gymnasium.make of the task, truncated at params.nsteps unless `max_episode_steps` says otherwise."""
+    params = params if params is not None else spec.default_params()
+    return gymnasium.make(spec.env_id, max_episode_steps=max_episode_steps or params.nsteps, backend=backend,
+                          params=params, seed=seed, **kwargs)

@@ -1,0 +1,34 @@
+"""A Backend without physics for the task tests: it hands out the readings a test scripts and records
+every reset, command and step the env makes."""
+from __future__ import annotations
+
+from robot_rl.backends import Backend, Readings
+
+
+class FakeBackend(Backend):
+    """Returns `at_reset` on reset and the next of `script` on each step (then `after` forever)."""
+
+    time_step = 0.001
+
+    def __init__(self, at_reset: Readings, script=(), after: Readings | None = None):
+        self.at_reset = at_reset
+        self.script = list(script)
+        self.after = after or at_reset
+        self.commands: list[tuple[str, float]] = []   # (controller, value) in call order
+        self.steps: list[int] = []                    # physics_steps of each step call
+        self.resets: list[bool] = []                  # restart_time of each reset call
+        self.closed = False
+
+    def reset(self, restart_time: bool = False) -> Readings:
+        self.resets.append(restart_time)
+        return self.at_reset
+
+    def set_command(self, controller: str, value: float) -> None:
+        self.commands.append((controller, value))
+
+    def step(self, physics_steps: int) -> Readings:
+        self.steps.append(physics_steps)
+        return self.script.pop(0) if self.script else self.after
+
+    def close(self) -> None:
+        self.closed = True

@@ -1,0 +1,81 @@
+"""Every registered task, the same checks: registration, params, gymnasium's env checker, reward terms
+that sum to the reward, metrics and state key, on the direct backend (no ROS master)."""
+import json
+import warnings
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import hopper_training
+import moving_cube_training
+from robot_rl.task import TASKS, Episode, find_task, make_env
+
+ALL_TASKS = [*moving_cube_training.TASKS, *hopper_training.TASKS]
+IDS = [task.env_id for task in ALL_TASKS]
+
+
+def test_three_tasks_are_registered():
+    assert IDS == ["MovingCubeOneDiskWalk-v0", "Monoped-v0", "MonopedHop-v0"]
+    assert all(TASKS[env_id] is task for env_id, task in zip(IDS, ALL_TASKS))
+    assert find_task(hopper_training.TASKS, "hop").env_id == "MonopedHop-v0"
+
+
+@pytest.mark.parametrize("task", ALL_TASKS, ids=IDS)
+def test_registered_with_the_default_yamls_nsteps(task):
+    params = task.default_params()
+    assert isinstance(params, task.params_type)
+    assert gymnasium.spec(task.env_id).max_episode_steps == task.max_episode_steps == params.nsteps
+    assert task.config_path.name == f"{task.name}.yaml"
+    assert task.params_type.from_mapping(params.to_mapping(), "round trip") == params
+
+
+@pytest.mark.parametrize("task", ALL_TASKS, ids=IDS)
+def test_check_env_passes_on_the_direct_backend(task):
+    env = gymnasium.make(task.env_id, backend="direct")
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            check_env(env.unwrapped, skip_render_check=True)
+    finally:
+        env.close()
+    # Distances and speeds are unbounded on purpose; anything else the checker says is a failure.
+    assert [str(w.message) for w in caught if "infinity" not in str(w.message)] == []
+
+
+@pytest.mark.parametrize("task", ALL_TASKS, ids=IDS)
+def test_reward_terms_in_info_sum_to_the_reward(task):
+    env = make_env(task, backend="direct", seed=1, max_episode_steps=100_000)
+    rng = np.random.default_rng(1)
+    seen_terms, fell = set(), False
+    try:
+        env.reset(seed=1)
+        for _ in range(20_000):
+            _, reward, terminated, truncated, info = env.step(int(rng.integers(env.action_space.n)))
+            terms = {key: value for key, value in info.items() if key.startswith("reward_")}
+            assert terms, "every step names its reward terms"
+            assert sum(terms.values()) == pytest.approx(reward, rel=1e-12, abs=1e-9)
+            seen_terms |= set(terms)
+            fell = fell or terminated
+            if terminated or truncated:
+                break
+    finally:
+        env.close()
+    assert fell and "reward_fall" in seen_terms and len(seen_terms) >= 3
+
+
+@pytest.mark.parametrize("task", ALL_TASKS, ids=IDS)
+def test_metrics_and_state_key(task):
+    assert task.headline_metric in task.metric_names
+    metrics = task.metrics(Episode(steps=10, return_=1.0, terminated=True, duration=0.5, info={}))
+    assert tuple(metrics) == task.metric_names
+    params = task.default_params()
+    env = make_env(task, params=params, backend="direct")
+    try:
+        observation, _ = env.reset(seed=0)
+    finally:
+        env.close()
+    state_key = task.state_key(params)
+    assert isinstance(state_key.key(observation), str)
+    assert json.loads(json.dumps(state_key.to_dict())) == state_key.to_dict()

@@ -1,0 +1,5 @@
+"""Python package setup for workspace_tools; run by catkin_python_setup(), not by hand."""
+from catkin_pkg.python_setup import generate_distutils_setup
+from setuptools import setup
+
+setup(**generate_distutils_setup(packages=["workspace_tools"], package_dir={"": "src"}))

@@ -1,0 +1,2 @@
+"""workspace_tools: what the tests, the benchmark and ./ws need around the workspace (private masters,
+process clean-up, roslaunch with exit codes); not part of the RL library."""
