@@ -3,11 +3,14 @@
 # ROS 1 packages, a venv from /usr/bin/python3 with the pinned requirements, the catkin build) and
 # does only what is missing, so a second run starts in seconds.
 #
-#   ./ws run [cube|hopper] set up, then train the cube (default) or the hopper (see README)
-#   ./ws test [ARGS...]    set up, then every test (pytest + rostest); ARGS go to pytest
-#   ./ws bench [--reps N]  set up, then the speed benchmark (table + bench_results.json)
-#   ./ws exec CMD...       run CMD inside the workspace environment
-#   ./ws setup             only the set-up
+#   ./ws run [cube|hopper] [NAME:=VALUE ...]  set up, then train (roslaunch <robot's package> main.launch)
+#   ./ws test [PYTEST ARGS]     set up, then the linters and every test (pytest + rostest)
+#   ./ws lint                   set up, then only the linters (ruff, mypy, catkin_lint, roslaunch-check)
+#   ./ws bench [--reps N]       set up, then the speed benchmark (table + bench_results.json)
+#   ./ws python [ARGS...]       python inside the workspace environment (the venv, the devel space)
+#   ./ws exec CMD [ARGS...]     CMD inside the workspace environment
+#   ./ws setup                  only the set-up
+#   ./ws help                   this text and the arguments of every launch file ./ws run starts
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -26,7 +29,7 @@ APT_PACKAGES=(
   python3-std-msgs ros-std-msgs python3-std-srvs ros-std-srvs
   python3-geometry-msgs ros-geometry-msgs python3-sensor-msgs ros-sensor-msgs
   python3-nav-msgs ros-nav-msgs python3-rosgraph-msgs ros-rosgraph-msgs
-  python3-tf2-msgs ros-tf2-msgs
+  python3-tf2-msgs ros-tf2-msgs tf-tools
 )
 
 log() { echo "[ws] $*" >&2; }
@@ -55,11 +58,19 @@ ensure_venv() {
     log "creating the venv (from $SYSTEM_PYTHON, with Debian's site-packages for rospy)"
     "$SYSTEM_PYTHON" -m venv --system-site-packages "$VENV"
   fi
-  local stamp="$VENV/.requirements.sha256" wanted
-  wanted="$(sha256sum "$ROOT/requirements.txt" | cut -d' ' -f1)"
+  ensure_requirements requirements.txt
+}
+
+# Install a pinned requirements file into the venv unless this very file was installed before.
+ensure_requirements() {
+  local file="$1" stamp wanted
+  stamp="$VENV/.${file%.txt}.sha256"
+  wanted="$(sha256sum "$ROOT/$file" | cut -d' ' -f1)"
   if [ "$(cat "$stamp" 2>/dev/null)" != "$wanted" ]; then
-    log "installing requirements.txt into the venv"
-    "$VENV/bin/pip" install --disable-pip-version-check -q -r "$ROOT/requirements.txt"
+    log "installing $file into the venv"
+    "$VENV/bin/pip" install --disable-pip-version-check -q -r "$ROOT/$file" 2>&1 | grep -v "^WARNING: Location" >&2 || true
+    "$VENV/bin/pip" install --disable-pip-version-check -q --no-deps -r "$ROOT/$file" >/dev/null 2>&1 \
+      || die "pip could not install $file (run: $VENV/bin/pip install -r $ROOT/$file)"
     echo "$wanted" >"$stamp"
   fi
 }
@@ -102,7 +113,56 @@ enter_environment() {
   export PATH="$VENV/bin:$PATH"
   export ROS_MASTER_URI="${ROS_MASTER_URI:-http://127.0.0.1:11311}"
   export ROS_HOSTNAME="${ROS_HOSTNAME:-127.0.0.1}"
+  # C++ nodes (rosout, robot_state_publisher) bind to ROS_IP, not ROS_HOSTNAME: both keep a run on loopback.
+  export ROS_IP="${ROS_IP:-127.0.0.1}"
   export PYTHONDONTWRITEBYTECODE=1
+}
+
+# The top-level launch file of each robot's training, as `./ws run ROBOT` starts it.
+launch_of() {
+  case "$1" in
+    cube) echo "moving_cube_training main.launch" ;;
+    hopper) echo "hopper_training main.launch" ;;
+    *) die "unknown robot '$1' (known: cube, hopper; see ./ws help)" ;;
+  esac
+}
+
+usage() {
+  sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//'
+}
+
+# The usage, then each training launch file's arguments, as roslaunch itself lists them.
+help_text() {
+  usage
+  local robot
+  for robot in cube hopper; do
+    # shellcheck disable=SC2046
+    printf '\n./ws run %s = roslaunch %s, arguments (NAME:=VALUE):\n' "$robot" "$(launch_of "$robot")"
+    # roslaunch files an argument whose default is "" under "Required": it is not, show its default.
+    roslaunch --ros-args $(launch_of "$robot") | grep '^  ' | sed '/(default /!s/^\(  [^:]*\):/\1 (default ""):/' | sort
+  done
+  printf '\nResults go to %s/training_results/ (results_dir:=...).\n' "$ROOT"
+}
+
+# Every linter the tests rely on; stops at the first one that complains.
+lint() {
+  ensure_requirements requirements-dev.txt
+  cd "$ROOT"
+  log "ruff"
+  ruff check --quiet . || die "ruff found problems (fix them, or 'ruff check --fix .')"
+  log "mypy"
+  mypy --no-error-summary || die "mypy found type errors"
+  log "catkin_lint"
+  local lint_output
+  lint_output="$(catkin_lint --quiet . 2>&1 | grep -v "rosdep\|unknown dependencies" || true)"
+  [ -z "$lint_output" ] || { echo "$lint_output" >&2; die "catkin_lint found problems"; }
+  log "roslaunch-check"
+  local launch_file
+  for launch_file in pybullet_sim/launch/{cube,hopper}_sim.launch {moving_cube,hopper}_training/launch/main.launch \
+                     moving_cube_training/launch/systems_test.launch test/integration/*.test; do
+    python3 /usr/share/roslaunch/scripts/roslaunch-check -o "$STATE/roslaunch-check.xml" "$launch_file" \
+      | grep -q "^passed" || die "roslaunch-check: $launch_file has problems (see $STATE/roslaunch-check.xml)"
+  done
 }
 
 free_port() {
@@ -123,20 +183,33 @@ case "$command" in
     setup ;;
   run)
     robot=cube
-    if [ $# -gt 0 ] && [[ "$1" != *:=* ]]; then robot="$1"; shift; fi
-    case "$robot" in
-      cube) package=moving_cube_training ;;
-      hopper) package=hopper_training ;;
-      *) die "unknown robot '$robot' (known: cube, hopper)" ;;
-    esac
+    if [ $# -gt 0 ] && [[ "$1" != *:=* && "$1" != -* ]]; then robot="$1"; shift; fi
+    for arg in "$@"; do
+      case "$arg" in
+        -h|--help) setup; enter_environment; help_text; exit 0 ;;
+        *:=*) ;;
+        *) die "'$arg' is not a launch argument NAME:=VALUE (see ./ws help)" ;;
+      esac
+    done
+    launch="$(launch_of "$robot")"
     setup
     private_master
     enter_environment
-    exec rosrun workspace_tools roslaunch_checked.py "$package" main.launch "results_dir:=$ROOT/training_results" "$@" ;;
+    # shellcheck disable=SC2086
+    exec rosrun workspace_tools roslaunch_checked.py $launch "results_dir:=$ROOT/training_results" "$@" ;;
+  help|-h|--help)
+    setup
+    enter_environment
+    help_text ;;
+  lint)
+    setup
+    enter_environment
+    lint ;;
   test)
     setup
     private_master
     enter_environment
+    lint
     cd "$ROOT"
     # The whole test folder unless the arguments name test files or folders themselves.
     paths=(test)
@@ -148,12 +221,17 @@ case "$command" in
     enter_environment
     cd "$ROOT"
     exec rosrun workspace_tools bench.py "$@" ;;
+  python)
+    setup
+    enter_environment
+    exec python "$@" ;;
   exec)
     [ $# -gt 0 ] || die "usage: ./ws exec CMD [ARGS...]"
     setup
     enter_environment
     exec "$@" ;;
   *)
-    sed -n '2,10p' "$0" | sed 's/^# \{0,1\}//' >&2
+    usage >&2
+    [ -z "$command" ] || die "unknown command '$command'"
     exit 2 ;;
 esac

@@ -6,6 +6,7 @@ what to check. Service proxies are persistent (one socket for the whole run).
 """
 from __future__ import annotations
 
+import socket
 import threading
 import time
 import warnings
@@ -133,8 +134,42 @@ class SensorSubscriber(Generic[Reading]):
         self._subscriber.unregister()
 
 
+class CallWatchdog:
+    """Bounds calls of persistent service proxies, which rospy cannot time out, without a thread
+    hand-off per call: the caller notes when a call starts and ends (two attribute writes), and a
+    daemon thread looks a few times per second; a call running longer than `timeout` gets its socket
+    shut down, so that rospy raises and the caller can say which service did not answer."""
+
+    def __init__(self, timeout: float):
+        self.timeout = timeout
+        self.expired: rospy.ServiceProxy | None = None   # the proxy whose call was ended, if any
+        self._call: tuple[rospy.ServiceProxy, float] | None = None
+        self._closed = threading.Event()
+        threading.Thread(target=self._watch, name="service-call-watchdog", daemon=True).start()
+
+    def start(self, proxy: rospy.ServiceProxy) -> None:
+        self._call = (proxy, time.monotonic())
+
+    def end(self) -> None:
+        self._call = None
+
+    def _watch(self) -> None:
+        while not self._closed.wait(min(0.25, self.timeout / 4)):
+            call = self._call
+            if call is not None and time.monotonic() - call[1] > self.timeout and call[0].transport is not None:
+                self.expired = call[0]
+                try:
+                    call[0].transport.socket.shutdown(socket.SHUT_RDWR)
+                except (AttributeError, OSError):  # already closed
+                    pass
+
+    def close(self) -> None:
+        self._closed.set()
+
+
 class SimConnection:
-    """pause / unpause / reset_world / reset_simulation / step on the sim node."""
+    """pause / unpause / reset_world / reset_simulation / step on the sim node, every call bounded by
+    `timeout` seconds of wall time."""
 
     def __init__(self, timeout: float = 10.0, hint: str = HINT):
         self.timeout = timeout
@@ -147,12 +182,23 @@ class SimConnection:
         self._empty = {name: rospy.ServiceProxy(name, Empty, persistent=True) for name in GAZEBO_SERVICES}
         self._step = rospy.ServiceProxy(STEP_SERVICE, Step, persistent=True)
         self._request = StepRequest()
+        self._watchdog = CallWatchdog(timeout)
+
+    def _failed(self, name: str, proxy: rospy.ServiceProxy, error: Exception) -> SimConnectionError:
+        if self._watchdog.expired is proxy:
+            return SimConnectionError(f"service {name} did not answer within {self.timeout} s: the sim node is "
+                                      f"frozen or overloaded (is it stopped, or stepping a huge request?)")
+        return SimConnectionError(f"service {name} failed: {error}; {self.hint}")
 
     def _call_empty(self, name: str) -> None:
+        proxy = self._empty[name]
+        self._watchdog.start(proxy)
         try:
-            self._empty[name]()
+            proxy()
         except (rospy.ServiceException, rospy.ROSException) as error:
-            raise SimConnectionError(f"service {name} failed: {error}; {self.hint}") from None
+            raise self._failed(name, proxy, error) from None
+        finally:
+            self._watchdog.end()
 
     def pause(self) -> None:
         self._call_empty("/gazebo/pause_physics")
@@ -174,12 +220,16 @@ class SimConnection:
         request.steps = steps
         request.command_topics = [c.topic for c in commands]
         request.command_counts = [c.count for c in commands]
+        self._watchdog.start(self._step)
         try:
             return self._step(request).stamp
         except (rospy.ServiceException, rospy.ROSException) as error:
-            raise SimConnectionError(f"service {STEP_SERVICE} failed: {error}") from None
+            raise self._failed(STEP_SERVICE, self._step, error) from None
+        finally:
+            self._watchdog.end()
 
     def close(self) -> None:
+        self._watchdog.close()
         for proxy in (*self._empty.values(), self._step):
             proxy.close()
 
