@@ -6,7 +6,9 @@ and 0 rad/s, two seconds apart, then log the cube state, done and reward.
     rosrun moving_cube_training cube_rl_systems_test.py
 
 or both at once: roslaunch moving_cube_training systems_test.launch (exits when this script is done).
-Exit code 0 on success, 1 (with the error printed) if the sim does not answer.
+Not in the seed: the last line is a verdict, "PASS: ..." when the wheel reached each commanded speed
+(within 10 %) 2 s after the command, "FAIL: ..." otherwise or when the sim does not answer; the
+exit code is 0 on PASS, 1 on FAIL.
 """
 import sys
 import time
@@ -18,6 +20,7 @@ from pybullet_sim.client import SimConnectionError
 
 SIM_SECONDS_BETWEEN_COMMANDS = 2.0
 WALL_TIMEOUT = 30.0  # wall seconds allowed for those 2 s of sim time
+SPEED_TOLERANCE = 0.1  # of the commanded speed (1 rad/s at 0): how close the wheel must get in those 2 s
 
 
 def wait_sim_time(duration, start, wall_timeout=WALL_TIMEOUT):
@@ -45,20 +48,24 @@ def wait_sim_time(duration, start, wall_timeout=WALL_TIMEOUT):
 
 
 def move_and_wait(cube_rl_utils_object, roll_speed):
+    """Command the wheel, wait 2 s of sim time; returns how far from the command the wheel is (rad/s)."""
     cube_rl_utils_object.move_joints(roll_speed=roll_speed)
     wait_sim_time(SIM_SECONDS_BETWEEN_COMMANDS, rospy.get_rostime())
+    return abs(cube_rl_utils_object.joints.velocity[0] - roll_speed)
 
 
 def cube_rl_systems_test():
+    """The seed's test; returns the commanded speeds the wheel did not reach (not in the seed)."""
     rospy.init_node('cube_rl_systems_test_node', anonymous=True, log_level=rospy.INFO)
-    cube_rl_utils_object = CubeRLUtils()
+    # Not in the seed: ~timeout (wall s) bounds every wait on the sim.
+    cube_rl_utils_object = CubeRLUtils(timeout=float(rospy.get_param("~timeout", 10.0)))
+    missed = []
 
-    rospy.loginfo("Moving to Speed==>80")
-    move_and_wait(cube_rl_utils_object, 80.0)
-    rospy.loginfo("Moving to Speed==>-80")
-    move_and_wait(cube_rl_utils_object, -80.0)
-    rospy.loginfo("Moving to Speed==>0.0")
-    move_and_wait(cube_rl_utils_object, 0.0)
+    for label, roll_speed in (("80", 80.0), ("-80", -80.0), ("0.0", 0.0)):  # the seed's log lines
+        rospy.loginfo("Moving to Speed==>" + label)
+        error = move_and_wait(cube_rl_utils_object, roll_speed)
+        if error > max(SPEED_TOLERANCE * abs(roll_speed), 1.0):
+            missed.append(f"{roll_speed:g} rad/s (off by {error:.1f})")
 
     cube_state = cube_rl_utils_object.get_cube_state()
     done = cube_rl_utils_object.observation_checks(cube_state)
@@ -68,14 +75,20 @@ def cube_rl_systems_test():
     rospy.loginfo("Reward==>" + str(reward))
     # Not in the seed: the state the reward was computed from, so the output can be checked.
     rospy.loginfo("Cube state==>" + str(cube_state))
+    return missed
 
 
 def main():
     try:
-        cube_rl_systems_test()
+        missed = cube_rl_systems_test()
     except SimConnectionError as error:
-        rospy.logerr(f"cube_rl_systems_test failed: {error}")  # on stderr, and in the node's log
+        print(f"FAIL: {error}", flush=True)
         return 1
+    if missed:
+        print(f"FAIL: the wheel did not reach {', '.join(missed)} within {SIM_SECONDS_BETWEEN_COMMANDS:g} s",
+              flush=True)
+        return 1
+    print("PASS: the wheel reached 80, -80 and 0 rad/s, each within 2 s of sim time", flush=True)
     return 0
 
 

@@ -25,9 +25,9 @@ TIMEOUT = 10.0
 FLOAT = r"[-+]?(?:\d+\.?\d*(?:[eE][-+]?\d+)?|inf|nan)"
 
 
-def run_script():
+def run_script(*args):
     """Run the script (inherited environment: this rostest's master, use_sim_time), output captured."""
-    process = subprocess.Popen(SCRIPT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    process = subprocess.Popen([*SCRIPT, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                start_new_session=True)
     try:
         stdout, stderr = process.communicate(timeout=SCRIPT_TIMEOUT)
@@ -36,7 +36,7 @@ def run_script():
         stdout, stderr = process.communicate()
         raise AssertionError(f"{' '.join(SCRIPT)} did not finish within {SCRIPT_TIMEOUT} s\n{stdout}\n{stderr}") \
             from None
-    return process.returncode, stdout + stderr
+    return process.returncode, stdout + stderr, stdout.strip().splitlines()[-1] if stdout.strip() else ""
 
 
 def hand_made_state(distance):
@@ -53,7 +53,7 @@ class CubeSystemsTest(unittest.TestCase):
         cls.unpause = rospy.ServiceProxy("/gazebo/unpause_physics", Empty)
 
     def test_systems_test_script(self):
-        returncode, output = run_script()
+        returncode, output, verdict = run_script()
         self.assertEqual(returncode, 0, output)
         lines = output.splitlines()
         for text in ("Moving to Speed==>80", "Moving to Speed==>-80", "Moving to Speed==>0.0"):
@@ -74,6 +74,7 @@ class CubeSystemsTest(unittest.TestCase):
         self.assertEqual(done.group(1), str(distance > 2.0))
         # The wheel was last commanded to 0 rad/s, 2 s of sim time before the state was taken.
         self.assertLess(abs(speed), 5.0, state.group(0))
+        self.assertEqual(verdict, "PASS: the wheel reached 80, -80 and 0 rad/s, each within 2 s of sim time")
 
     def test_utils_against_the_running_sim(self):
         utils = CubeRLUtils(timeout=TIMEOUT)
@@ -110,6 +111,15 @@ class CubeSystemsTest(unittest.TestCase):
                 self.assertLess(time.monotonic() - start, 5.0)
                 self.assertIn(topic, str(raised.exception))
                 self.assertIn("roslaunch pybullet_sim cube_sim.launch paused:=false", str(raised.exception))
+
+    def test_systems_test_script_fails_with_a_verdict_on_a_paused_sim(self):
+        self.pause()
+        try:
+            returncode, output, verdict = run_script("_timeout:=1.0")
+        finally:
+            self.unpause()
+        self.assertEqual(returncode, 1, output)
+        self.assertTrue(verdict.startswith("FAIL: no message on /moving_cube/joint_states"), output)
 
     def test_paused_sim_times_out(self):
         """A paused sim publishes nothing, so the sensor check gives up after its timeout."""

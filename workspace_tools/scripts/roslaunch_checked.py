@@ -1,11 +1,12 @@
 #!/usr/bin/env python3
-"""roslaunch a file and exit with the first non-zero exit code of any of its nodes.
+"""roslaunch a file; end when its required nodes end, and exit with their exit code.
 
-  roslaunch_checked.py [PACKAGE] LAUNCH_FILE [arg:=value ...]
+  roslaunch_checked.py [PACKAGE] LAUNCH_FILE [NAME:=VALUE ...]
 
-Plain roslaunch exits 0 even when a required node (here: a training node) failed; ./ws run uses
-this so that a failed training is a failed command. Starts a master if none is running, as
-roslaunch does.
+What plain roslaunch does not: a required node (here: a training node) that fails makes the command
+fail (roslaunch exits 0 whatever its nodes did), a required node that finishes cleanly ends the
+launch without roslaunch's red "REQUIRED process has died" banner, and Ctrl-C exits 130. Starts a
+master if none is running, as roslaunch does.
 """
 import sys
 
@@ -14,32 +15,50 @@ import roslaunch.parent
 import roslaunch.pmon
 import roslaunch.rlutil
 
+INTERRUPTED = 130  # the shell's code for a command ended by SIGINT
 
-class FailedNodes(roslaunch.pmon.ProcessListener):
+
+class ExitCodes(roslaunch.pmon.ProcessListener):
+    """Records how nodes end; when one of `ends_launch` ends, shuts the launch down as roslaunch would."""
+
     def __init__(self):
-        self.exit_codes = []
+        self.ends_launch = set()
+        self.monitor = None
+        self.finished = None    # exit code of the first node of ends_launch to end
+        self.failures = []      # non-zero exit codes of the other nodes
 
     def process_died(self, process_name, exit_code):
-        if exit_code:
-            self.exit_codes.append(exit_code)
+        if process_name in self.ends_launch and self.finished is None:
+            self.finished = exit_code or 0
+            self.monitor.is_shutdown = True
+        elif exit_code:
+            self.failures.append(exit_code)
 
 
 def main(argv) -> int:
-    if not argv:
+    if not argv or argv[0] in ("-h", "--help"):
         print(__doc__, file=sys.stderr)
         return 2
     launch_file = roslaunch.rlutil.resolve_launch_arguments(argv)[0]
     launch_args = [arg for arg in argv if ":=" in arg]
     uuid = roslaunch.rlutil.get_or_generate_uuid(None, False)
     roslaunch.configure_logging(uuid)
-    failed = FailedNodes()
-    parent = roslaunch.parent.ROSLaunchParent(uuid, [(launch_file, launch_args)], process_listeners=[failed])
+    codes = ExitCodes()
+    parent = roslaunch.parent.ROSLaunchParent(uuid, [(launch_file, launch_args)], process_listeners=[codes])
     parent.start()
+    # Required nodes end the launch through the listener instead, without the banner.
+    codes.monitor = parent.pm
+    for process in parent.pm.procs:
+        if process.required:
+            process.required = False
+            codes.ends_launch.add(process.name)
     try:
         parent.spin()
     finally:
         parent.shutdown()
-    return failed.exit_codes[0] if failed.exit_codes else 0
+    if codes.finished is not None:
+        return codes.finished or (codes.failures[0] if codes.failures else 0)
+    return codes.failures[0] if codes.failures else INTERRUPTED
 
 
 if __name__ == "__main__":

@@ -90,6 +90,11 @@ class SensorSubscriber(Generic[Reading]):
         self._count = 0
         self._latest_msg = None
         self._subscriber = rospy.Subscriber(self.topic, msg_type, self._callback, tcp_nodelay=True)
+        rospy.on_shutdown(self._wake)
+
+    def _wake(self) -> None:
+        with self._condition:
+            self._condition.notify_all()
 
     def _callback(self, msg) -> None:
         with self._condition:
@@ -122,7 +127,9 @@ class SensorSubscriber(Generic[Reading]):
         def arrived():
             return self._count > count and (stamp is None or self._latest_msg.header.stamp == stamp)
         with self._condition:
-            if not self._condition.wait_for(arrived, timeout):
+            if not self._condition.wait_for(lambda: arrived() or rospy.is_shutdown(), timeout) or not arrived():
+                if rospy.is_shutdown():
+                    raise SimConnectionError(f"shutdown while waiting for a message on {self.topic}")
                 expected = f" stamped {stamp.to_sec():.6f} s" if stamp is not None else ""
                 got = "" if self._latest_msg is None else \
                     f" (latest is stamped {self._latest_msg.header.stamp.to_sec():.6f} s)"

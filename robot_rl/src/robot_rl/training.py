@@ -6,7 +6,10 @@ terminal transitions do not bootstrap, the step cap is gymnasium truncation, eve
 appended to episodes.csv with the task's metrics, a progress line (rate, ETA, the task's headline
 metric) is logged every few seconds, a checkpoint (Q-table, epsilon, RNG, counters; JSON, atomic)
 is written every `checkpoint_every` episodes and at the end, and a run can resume from its last
-checkpoint: episodes logged after it are dropped and re-run, never repeated.
+checkpoint: episodes logged after it are dropped and re-run, never repeated. When an episode cannot
+finish (Ctrl-C, the sim gone), the Q-learner goes back to where that episode started and a
+checkpoint and a summary marked incomplete are written before the error goes on: nothing completed
+is lost, and resuming repeats exactly what the uninterrupted run would have done.
 """
 from __future__ import annotations
 
@@ -111,14 +114,15 @@ class QLearningTrainer:
                              "initial_epsilon": self.initial_epsilon, "state": dataclasses.asdict(self.state)})
         self.run.write_learning_curve(self.task.headline_metric)
 
-    def _episode(self, first: bool) -> Episode:
+    def _episode(self, first: bool) -> tuple[Episode, float]:
+        """One episode: (the episode, the highest cumulated reward within it). Changes only the Q-learner."""
         qlearn, env = self.qlearn, self.env
         if qlearn.epsilon > 0.05:
             qlearn.epsilon *= self.params.epsilon_discount
         # The first episode of a (resumed) run restarts sim time and sensor noise from the seeds.
         observation, _ = env.reset(seed=self.params.seed if first else None)
         state = self.state_key.key(observation)
-        cumulated = 0.0
+        cumulated, highest = 0.0, -math.inf
         steps = 0
         terminated = False
         info: dict[str, Any] = {}
@@ -128,17 +132,25 @@ class QLearningTrainer:
             reward = float(step_reward)
             steps = i + 1
             cumulated += reward
-            self.state.highest_reward = max(self.state.highest_reward, cumulated)
+            highest = max(highest, cumulated)
             next_state = self.state_key.key(observation)
             qlearn.learn(state, action, reward, next_state, terminal=terminated)
             self.on_step(reward, cumulated)
-            if terminated:
-                self.state.last_time_steps.append(steps)
             if terminated or truncated:
                 break
             state = next_state
         return Episode(steps=steps, return_=cumulated, terminated=terminated, duration=steps * self.running_step,
-                       info=info)
+                       info=info), highest
+
+    def _stop_mid_episode(self, reason: str) -> None:
+        """Back to the start of the episode that could not finish, then checkpoint and summary (incomplete)."""
+        self.qlearn.q, self.qlearn.epsilon, rng_state = self._episode_start
+        self.qlearn.rng.setstate(rng_state)
+        try:
+            self.checkpoint()
+            self.finish(stopped=reason)
+        except OSError as error:  # the original error matters more; say why nothing was saved
+            self.log(f"could not save the run after episode {self.state.episode}: {error}")
 
     def train(self) -> dict[str, Any]:
         """Run the remaining episodes; returns the summary written to summary.json."""
@@ -150,8 +162,19 @@ class QLearningTrainer:
                                        for r in self.run.read_episodes()[-PROGRESS_WINDOW:]]
         first = True
         while state.episode < params.nepisodes and not self.should_stop():
-            episode = self._episode(first)
+            self._episode_start = (dict(self.qlearn.q), self.qlearn.epsilon, self.qlearn.rng.getstate())
+            try:
+                episode, highest = self._episode(first)
+            except KeyboardInterrupt:
+                self._stop_mid_episode("interrupted")
+                raise
+            except Exception as error:
+                self._stop_mid_episode("interrupted" if self.should_stop() else f"error: {error}")
+                raise
             first = False
+            state.highest_reward = max(state.highest_reward, highest)
+            if episode.terminated:
+                state.last_time_steps.append(episode.steps)
             metrics = self.task.metrics(episode)
             headline = [*headline[-PROGRESS_WINDOW + 1:], metrics[self.task.headline_metric]]
             state.episode += 1
@@ -172,7 +195,7 @@ class QLearningTrainer:
                 next_progress = now + self.progress_every_s
                 self._log_progress(start_episode, now - start_wall, headline)
         self.checkpoint()
-        return self.finish()
+        return self.finish(stopped=None if state.episode >= params.nepisodes else "interrupted")
 
     def _log_progress(self, start_episode: int, elapsed: float, headline: list[MetricValue]) -> None:
         state, total = self.state, self.params.nepisodes
@@ -184,8 +207,9 @@ class QLearningTrainer:
                  f"{value[0]} over the last {len(headline)} episodes: {value[1]:.3g}, "
                  f"epsilon {self.qlearn.epsilon:.3f}")
 
-    def finish(self) -> dict[str, Any]:
-        """The tutorials' closing lines (without their reduce and division-by-zero bugs) + summary.json."""
+    def finish(self, stopped: str | None = None) -> dict[str, Any]:
+        """The tutorials' closing lines (without their reduce and division-by-zero bugs) + summary.json;
+        `stopped` says why a run ended before its last episode."""
         state, qlearn, params = self.state, self.qlearn, self.params
         self.log(f"\n|{params.nepisodes}|{qlearn.alpha}|{qlearn.gamma}|{self.initial_epsilon}*"
                  f"{params.epsilon_discount}|{state.highest_reward}| PICTURE |")
@@ -207,6 +231,6 @@ class QLearningTrainer:
                    "env_steps": state.env_steps, "sim_time_s": state.sim_time, "wall_time_s": state.wall_time,
                    "env_steps_per_s": state.env_steps / state.wall_time if state.wall_time > 0 else None,
                    "q_table_entries": len(qlearn.q), "final_epsilon": qlearn.epsilon,
-                   "completed": state.episode >= params.nepisodes}
+                   "completed": state.episode >= params.nepisodes and stopped is None, "stopped": stopped}
         self.run.write_summary(summary)
         return summary

@@ -6,10 +6,14 @@ makes the env over ROS, opens a new run or the latest one to resume, trains, and
 rewards. Private params: ~task, ~config_file (named in errors), ~results_dir (default
 $ROS_HOME/training_results), ~resume, ~nepisodes (optional override), ~timeout (s, every wait on
 the sim), ~quiet (the per-episode "EP:" lines go to the debug log level).
+
+SIGINT or SIGTERM (Ctrl-C, roslaunch shutting down) stops the run cleanly: the episode under way is
+abandoned, a checkpoint and summary.json (marked incomplete) are written, and the node exits 130.
+Exit codes: 0 trained, 1 failed (one FATAL line says why), 130 interrupted.
 """
 from __future__ import annotations
 
-import sys
+import signal
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -25,11 +29,19 @@ from .results import RunDirectory
 from .task import TaskSpec, find_task, make_env
 from .training import QLearningTrainer
 
+INTERRUPTED = 130  # the shell's code for a command ended by SIGINT
+
 
 def _fail(message: str) -> int:
     rospy.logfatal(message)
-    print(message, file=sys.stderr, flush=True)
     return 1
+
+
+def _interrupted(episodes: int, run: RunDirectory) -> int:
+    message = (f"training interrupted after episode {episodes}: checkpoint and summary.json (incomplete) in "
+               f"{run.path}; continue with resume:=true")
+    rospy.logwarn(message)
+    return INTERRUPTED
 
 
 def _read_params(task: TaskSpec[Any]) -> TaskParams:
@@ -40,8 +52,30 @@ def _read_params(task: TaskSpec[Any]) -> TaskParams:
     return params.with_changes(rospy.get_name(), nepisodes=nepisodes)
 
 
+def _stop_on_signals() -> list[int]:
+    """Turn SIGINT and SIGTERM into a request to stop (and a rospy shutdown, which ends every wait on the
+    sim at once) instead of an exception at whatever line is running. Returns the signals received."""
+    received: list[int] = []
+
+    def handler(signum: int, _frame: Any) -> None:
+        received.append(signum)
+        rospy.signal_shutdown(signal.Signals(signum).name)
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+    return received
+
+
+def _close_quietly(env: Any) -> None:
+    """Close the env; after a shutdown its connections may already be gone, which is fine."""
+    try:
+        env.close()
+    except (SimConnectionError, rospy.ROSException):
+        pass
+
+
 def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
-    rospy.init_node(node_name, anonymous=True, log_level=rospy.INFO)
+    rospy.init_node(node_name, anonymous=True, log_level=rospy.INFO, disable_signals=True)
+    signals = _stop_on_signals()
     try:
         task = find_task(list(tasks), rospy.get_param("~task", tasks[0].name))
         params = _read_params(task)
@@ -68,16 +102,22 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
         trainer = QLearningTrainer(env, task, params, run, log=rospy.loginfo, log_episode=log_episode,
                                    on_step=on_step,
                                    on_episode=lambda cumulated: episode_reward_pub.publish(Float64(cumulated)),
-                                   should_stop=rospy.is_shutdown, resume=resume)
+                                   should_stop=lambda: bool(signals) or rospy.is_shutdown(), resume=resume)
         summary = trainer.train()
     except (FileNotFoundError, ValueError) as error:
         return _fail(str(error))
     except SimConnectionError as error:
-        return _fail(f"training stopped: {error}. Episodes up to the last checkpoint are in {results_root}; "
-                     f"continue with resume:=true")
+        if signals or rospy.is_shutdown():
+            return _interrupted(trainer.state.episode, run)
+        return _fail(f"training stopped: {error}. Episodes up to episode {trainer.state.episode} are saved in "
+                     f"{run.path}; continue with resume:=true")
+    except OSError as error:  # the results folder: read-only, disk full...
+        return _fail(f"cannot write the results: {error.filename or results_root}: {error.strerror or error}")
     finally:
-        env.close()
-    rospy.loginfo("Training %s: %d episodes, %d env steps in %.1f s (%.0f steps/s). Results: %s",
-                  "complete" if summary["completed"] else "stopped", summary["episodes"], summary["env_steps"],
-                  summary["wall_time_s"], summary["env_steps_per_s"] or 0.0, run.path)
+        _close_quietly(env)
+    if not summary["completed"]:
+        return _interrupted(summary["episodes"], run)
+    rospy.loginfo("Training complete: %d episodes, %d env steps in %.1f s (%.0f steps/s). Results: %s",
+                  summary["episodes"], summary["env_steps"], summary["wall_time_s"], summary["env_steps_per_s"] or 0.0,
+                  run.path)
     return 0
