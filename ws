@@ -29,7 +29,7 @@ APT_PACKAGES=(
   python3-std-msgs ros-std-msgs python3-std-srvs ros-std-srvs
   python3-geometry-msgs ros-geometry-msgs python3-sensor-msgs ros-sensor-msgs
   python3-nav-msgs ros-nav-msgs python3-rosgraph-msgs ros-rosgraph-msgs
-  python3-tf2-msgs ros-tf2-msgs tf-tools
+  python3-tf2-msgs ros-tf2-msgs tf-tools librostest-dev
 )
 
 log() { echo "[ws] $*" >&2; }
