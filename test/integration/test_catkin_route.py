@@ -8,9 +8,10 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import REPO
 
 from workspace_tools.processes import Processes, RosMaster
+
+from conftest import REPO
 
 # Variables the workspace's own devel space sets; the install space must work without them.
 WORKSPACE_VARIABLES = ("ROS_PACKAGE_PATH", "PYTHONPATH", "CMAKE_PREFIX_PATH", "LD_LIBRARY_PATH", "PKG_CONFIG_PATH",

@@ -11,6 +11,7 @@ master if none is running, as roslaunch does.
 import sys
 
 import roslaunch
+import roslaunch.core
 import roslaunch.parent
 import roslaunch.pmon
 import roslaunch.rlutil
@@ -45,7 +46,12 @@ def main(argv) -> int:
     roslaunch.configure_logging(uuid)
     codes = ExitCodes()
     parent = roslaunch.parent.ROSLaunchParent(uuid, [(launch_file, launch_args)], process_listeners=[codes])
-    parent.start()
+    try:
+        parent.start()
+    except roslaunch.core.RLException as error:  # a launch file, argument or YAML file roslaunch cannot load
+        print(f"roslaunch_checked.py: cannot launch {launch_file}: {' '.join(str(error).split())}", file=sys.stderr)
+        parent.shutdown()
+        return 1
     # Required nodes end the launch through the listener instead, without the banner.
     codes.monitor = parent.pm
     for process in parent.pm.procs:

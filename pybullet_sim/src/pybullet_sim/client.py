@@ -184,6 +184,8 @@ class SimConnection:
         for name in GAZEBO_SERVICES + (STEP_SERVICE,):
             try:
                 rospy.wait_for_service(name, timeout)
+            except rospy.ROSInterruptException:
+                raise SimConnectionError(f"shutdown while waiting for service {name}") from None
             except rospy.ROSException:
                 raise SimConnectionError(f"service {name} is not available after {timeout} s; {hint}") from None
         self._empty = {name: rospy.ServiceProxy(name, Empty, persistent=True) for name in GAZEBO_SERVICES}

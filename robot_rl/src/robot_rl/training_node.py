@@ -24,7 +24,7 @@ from std_msgs.msg import Float64
 
 from pybullet_sim.client import SimConnectionError
 
-from .params import ParamError, TaskParams
+from .params import ParamError, TaskParams, load_yaml_file
 from .results import RunDirectory
 from .task import TaskSpec, find_task, make_env
 from .training import QLearningTrainer
@@ -46,6 +46,8 @@ def _interrupted(episodes: int, run: RunDirectory) -> int:
 
 def _read_params(task: TaskSpec[Any]) -> TaskParams:
     config_file = rospy.get_param("~config_file", "rosparam")
+    if Path(config_file).is_file():
+        load_yaml_file(config_file)  # rosparam keeps the last of two equal keys; a strict loader refuses them
     namespace = task.params_namespace
     params = task.params_type.from_mapping(rospy.get_param(namespace, {}), f"{config_file} ({namespace.rstrip('/')}/)")
     nepisodes = rospy.get_param("~nepisodes", params.nepisodes)
@@ -88,6 +90,9 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     try:
         env = make_env(task, params=params, backend="ros", ros_timeout=timeout)
     except SimConnectionError as error:
+        if signals or rospy.is_shutdown():  # e.g. the sim failed to start and roslaunch is ending the launch
+            rospy.logwarn("stopped before training started: %s", error)
+            return INTERRUPTED
         return _fail(str(error))
     try:
         run = RunDirectory.latest(results_root, task.results_name) if resume else \
