@@ -1,13 +1,10 @@
 """The cube's Q-learning training end to end over ROS (moving_cube_training's main.launch on its own master):
-a short run writes every results file, a SIGKILLed run resumes without losing or repeating an
-episode, bad params stop the node with one clear line, and evaluate.py reports as documented."""
+a short run writes every results file, two runs repeat each other, evaluate.py reports as documented, and
+two backends in one node keep the lockstep guarantee (faults and bad input: test_faults.py)."""
 import json
-import os
 import re
-import signal
 import subprocess
 import time
-import xmlrpc.client
 from pathlib import Path
 
 import pytest
@@ -139,117 +136,6 @@ def test_evaluate_prints_one_json_line(three_episodes, tmp_path):
     assert outputs[0].stdout.strip().splitlines()[-1] == outputs[1].stdout.strip().splitlines()[-1], \
         "the run folder and its qtable.json are the same Q-table; the direct backend is deterministic"
     assert missing.returncode == 2 and "cannot read the trained Q-table" in missing.stderr
-
-
-# -- SIGKILL and resume --------------------------------------------------------------------------
-
-def training_node_pid(master: RosMaster) -> int:
-    """The pid of the (anonymous) training node, asked from the node itself over XML-RPC."""
-    publishers, _, _ = master.params.getSystemState()
-    names = {node for _, nodes in publishers for node in nodes if node.startswith("/movingcube_gym")}
-    assert len(names) == 1, names
-    code, message, pid = xmlrpc.client.ServerProxy(master.params.lookupNode(names.pop())).getPid("/pytest")
-    assert code == 1, message
-    return pid
-
-
-def test_sigkill_between_checkpoints_then_resume(tmp_path):
-    # Angle limits out of reach: every episode lasts nsteps, so checkpoints (every 10 episodes) are
-    # about 1.5 s apart and the kill lands between two of them.
-    config = write_config(tmp_path / "config.yaml", nepisodes=40, nsteps=50, max_pitch_angle=10.0,
-                          max_yaw_angle=10.0)
-    results = tmp_path / "results"
-    run = results / "moving_cube" / "latest"
-    csv_path, qtable = run / "episodes.csv", run / "qtable.json"
-
-    def checkpoint_then_more():
-        if not qtable.exists():
-            return None
-        episode = json.loads(qtable.read_text())["episode"]
-        return episode >= 10 and len(complete_lines(csv_path)) - 1 > episode
-
-    master = RosMaster(tmp_path / "ros", cwd=REPO)
-    try:
-        log = tmp_path / "first.log"
-        launch = start_training(master, results, config, log)
-        wait_for(checkpoint_then_more, 120, "a checkpoint at episode >= 10 followed by another episode")
-        os.kill(training_node_pid(master), signal.SIGKILL)
-        wait_exit(launch, 60, log)  # the node is required: roslaunch shuts the rest down
-    finally:
-        master.close()
-    first_output = log.read_text()
-    assert "REQUIRED process [movingcube_gym" in first_output and "exit code -9" in first_output, \
-        first_output[-3000:]
-
-    checkpoint = json.loads(qtable.read_text())
-    saved = checkpoint["episode"]
-    lines_at_kill = complete_lines(csv_path)
-    logged = [int(line.split(",")[0]) for line in lines_at_kill[1:]]
-    assert saved % 10 == 0 and saved < 40
-    assert logged == list(range(1, len(logged) + 1)) and len(logged) > saved, "killed between two checkpoints"
-    assert not (run / "summary.json").exists(), "a killed run has no summary"
-    checkpointed_bytes = "".join(line + "\n" for line in lines_at_kill[:saved + 1]).encode()
-
-    master = RosMaster(tmp_path / "resume", cwd=REPO)
-    try:
-        log = tmp_path / "resume.log"
-        code = wait_exit(start_training(master, results, config, log, resume="true"), 180, log)
-    finally:
-        master.close()
-    output = log.read_text()
-    assert code == 0, output[-4000:]
-    assert re.search(rf"Resuming .* after episode {saved} ", output), output[-3000:]
-    first_episode = re.search(r"EP: (\d+) - ", output)
-    assert first_episode and int(first_episode.group(1)) == saved + 1, output[-3000:]
-
-    assert episode_numbers(csv_path) == list(range(1, 41))
-    assert csv_path.read_bytes().startswith(checkpointed_bytes), "rows up to the checkpoint must not change"
-    rows = complete_lines(csv_path)
-    epsilon = float(rows[saved + 1].split(",")[3])
-    assert epsilon == pytest.approx(checkpoint["qlearn"]["epsilon"] * 0.999, rel=1e-12)
-    summary = json.loads((run / "summary.json").read_text())
-    assert summary["completed"] is True and summary["episodes"] == 40
-    assert json.loads(qtable.read_text())["episode"] == 40
-    assert len(list((results / "moving_cube").iterdir())) == 2, "resume continues the run, it does not start one"
-
-
-# -- bad params ----------------------------------------------------------------------------------
-
-def test_bad_params_stop_the_node_with_one_line(ros_master, tmp_path):
-    config = write_config(tmp_path / "bad.yaml", alpha=1.5)
-    results, log = tmp_path / "results", tmp_path / "roslaunch.log"
-    start = time.monotonic()
-    wait_exit(start_training(ros_master, results, config, log), 60, log)
-    elapsed = time.monotonic() - start
-    output = log.read_text()
-    died = re.search(r"process has died \[pid \d+, exit code (-?\d+), cmd \S*start_training\.py", output)
-    assert died and int(died.group(1)) != 0, output[-3000:]
-    assert elapsed < 30
-    errors = [line for line in output.splitlines() if "'alpha'" in line]
-    assert errors, output[-3000:]
-    assert all(str(config) in line and "1.5" in line for line in errors), errors
-    assert "Traceback" not in output
-    assert not results.exists(), "nothing may be written before the params are valid"
-
-
-@pytest.mark.parametrize("previous_run", [
-    "none",
-    "without_checkpoint",
-])
-def test_resume_with_nothing_to_resume_stops_with_one_line(ros_master, tmp_path, previous_run):
-    from robot_rl.results import RunDirectory
-    results, log = tmp_path / "results", tmp_path / "roslaunch.log"
-    expected = "no previous run under"
-    if previous_run == "without_checkpoint":
-        run = RunDirectory.create(results, "moving_cube", {"nepisodes": 3})
-        expected = f"no checkpoint {run.path / 'qtable.json'}"
-    config = write_config(tmp_path / "config.yaml", nepisodes=3, nsteps=50)
-    wait_exit(start_training(ros_master, results, config, log, resume="true"), 60, log)
-    output = log.read_text()
-    died = re.search(r"process has died \[pid \d+, exit code (-?\d+), cmd \S*start_training\.py", output)
-    assert died and int(died.group(1)) != 0, output[-3000:]
-    assert "Traceback" not in output, output[-3000:]
-    assert re.search(rf"^\[FATAL\].*{re.escape(expected)}", output, re.M), output[-3000:]
 
 
 # -- lockstep with a second backend in one node --------------------------------------------------

@@ -63,8 +63,10 @@ def main(argv) -> int:
     finally:
         parent.shutdown()
     if codes.finished is not None:
-        return codes.finished or (codes.failures[0] if codes.failures else 0)
-    return codes.failures[0] if codes.failures else INTERRUPTED
+        code = codes.finished or (codes.failures[0] if codes.failures else 0)
+    else:
+        code = codes.failures[0] if codes.failures else INTERRUPTED
+    return 128 - code if code < 0 else code  # a node killed by signal N: 128 + N, as the shell says
 
 
 if __name__ == "__main__":

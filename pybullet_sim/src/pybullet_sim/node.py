@@ -14,7 +14,6 @@ controllers and sensors (see moving_cube_description/config/moving_cube_sim.yaml
 from __future__ import annotations
 
 import math
-import sys
 import threading
 import time
 from contextlib import contextmanager
@@ -290,9 +289,7 @@ def main(argv: List[str] = None) -> int:
     try:
         node = SimNode()
     except (ConfigError, UrdfError) as error:
-        message = f"pybullet_sim cannot start: {error}"
-        rospy.logfatal(message)
-        print(message, file=sys.stderr, flush=True)
+        rospy.logfatal(f"pybullet_sim cannot start: {error}")
         return 1
     try:
         node.spin()

@@ -1,6 +1,7 @@
 """Processes run against a private ROS master: a rosmaster on a free loopback port, and every process
-started here ended by its PID (process group) on close(). Used by the integration tests and the
-benchmark, which must leave nothing running."""
+started here ended by its PID (process group) on close(), then every process still talking to that
+master (roslaunch starts its nodes in sessions of their own) found by its environment and killed.
+Used by the integration tests and the benchmark, which must leave nothing running."""
 from __future__ import annotations
 
 import os
@@ -17,6 +18,21 @@ def free_port() -> int:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         return sock.getsockname()[1]
+
+
+def processes_using(uri: str) -> list[int]:
+    """Pids of the processes (other than this one) whose environment points ROS_MASTER_URI at `uri`."""
+    wanted = f"ROS_MASTER_URI={uri}".encode()
+    pids = []
+    for entry in os.scandir("/proc"):
+        if entry.name.isdigit() and int(entry.name) != os.getpid():
+            try:
+                environ = Path(entry.path, "environ").read_bytes().split(b"\0")
+            except OSError:  # gone, or a kernel thread
+                continue
+            if wanted in environ:
+                pids.append(int(entry.name))
+    return pids
 
 
 def stop(process: subprocess.Popen, timeout: float = 10.0) -> None:
@@ -73,6 +89,7 @@ class RosMaster(Processes):
         self.uri = f"http://127.0.0.1:{port}"
         super().__init__(log_dir, cwd, ROS_MASTER_URI=self.uri, ROS_HOSTNAME="127.0.0.1", ROS_IP="127.0.0.1")
         master = self.start(["rosmaster", "--core", "-p", str(port)])
+        self.master_pid = master.pid
         deadline = time.monotonic() + 20.0
         while True:  # bounded poll: rosmaster has no readiness signal
             try:
@@ -87,6 +104,18 @@ class RosMaster(Processes):
     @property
     def params(self) -> rosgraph.Master:
         return rosgraph.Master("/pytest", master_uri=self.uri)
+
+    def leftovers(self) -> list[int]:
+        """Processes other than the master still using it (after a launch ended, there should be none)."""
+        return [pid for pid in processes_using(self.uri) if pid != self.master_pid]
+
+    def close(self) -> None:
+        super().close()
+        for pid in processes_using(self.uri):  # orphans of a roslaunch that was killed
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
 
 
 def launch_args(**args: object) -> list[str]:

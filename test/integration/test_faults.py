@@ -1,0 +1,607 @@
+"""Faults and bad inputs, each on its own master, as a user meets them: every case asserts the one clear
+line that says what is wrong, the exit code, that nothing was lost, and that no process is left.
+
+The README's fault table lists every case of this file (its test ids in brackets)."""
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import rosgraph
+import yaml
+
+from hopper_training.monoped_env import STAY_UP
+from moving_cube_training.one_disk_walk import MOVING_CUBE, ONE_DISK_WALK
+from workspace_tools.processes import Processes, RosMaster, free_port, processes_using
+
+from conftest import REPO
+
+TRAIN = ["rosrun", "workspace_tools", "roslaunch_checked.py"]  # what ./ws run starts
+CUBE_TRAINING = [*TRAIN, "moving_cube_training", "main.launch"]
+HOPPER_TRAINING = [*TRAIN, "hopper_training", "main.launch"]
+CUBE_URDF = MOVING_CUBE.urdf_path.read_text()
+CUBE_SIM = yaml.safe_load(MOVING_CUBE.sim_config_path.read_text())
+INTERRUPTED = 130
+
+
+# -- helpers --------------------------------------------------------------------------------------
+
+@pytest.fixture
+def master(tmp_path):
+    """A private master; at the end, nothing may be left running against it."""
+    ros = RosMaster(tmp_path / "ros", cwd=REPO)
+    try:
+        yield ros
+        assert ros.leftovers() == [], "processes left running: " + ", ".join(
+            Path(f"/proc/{pid}/cmdline").read_text().replace("\0", " ")[:120] for pid in ros.leftovers())
+    finally:
+        ros.close()
+
+
+def cube_config(path: Path, **changes) -> Path:
+    document = yaml.safe_load(ONE_DISK_WALK.config_path.read_text())
+    document["moving_cube"].update(changes)
+    path.write_text(yaml.safe_dump(document))
+    return path
+
+
+def one_line(output: str, text: str) -> str:
+    """The one line of `output` that says `text` (roslaunch's screen output repeats nothing else)."""
+    lines = [line for line in output.splitlines() if text in line]
+    assert len(lines) == 1, f"expected one line with {text!r}, got {len(lines)}:\n{output[-4000:]}"
+    assert "Traceback" not in output, output[-4000:]
+    return lines[0]
+
+
+def wait_for(predicate, timeout: float, what: str, interval: float = 0.02):
+    """Bounded poll, for what has no notification (a file another process writes, the master's state)."""
+    end = time.monotonic() + timeout
+    while not (value := predicate()):
+        if time.monotonic() > end:
+            raise AssertionError(f"{what} did not happen within {timeout} s")
+        time.sleep(interval)
+    return value
+
+
+def node_pid(master: RosMaster, name: str) -> int:
+    """The pid of a node, from `rosnode info` (the master knows every node's XML-RPC address)."""
+    info = master.run(["rosnode", "info", name], timeout=30).stdout
+    return int(next(line.split()[-1] for line in info.splitlines() if line.startswith("Pid:")))
+
+
+def run_files(results: Path, task: str = "moving_cube") -> dict:
+    """Every file of the latest run, as bytes."""
+    run = results / task / "latest"
+    return {p.name: p.read_bytes() for p in sorted(run.iterdir())} if run.exists() else {}
+
+
+def episodes(results: Path, task: str = "moving_cube") -> list[int]:
+    lines = (results / task / "latest" / "episodes.csv").read_text().split("\n")[1:-1]
+    return [int(line.split(",")[0]) for line in lines]
+
+
+# -- parameters and configuration (the training node, before anything is written) ----------------
+
+@pytest.mark.parametrize("changes, expected", [
+    ({"alpha": None}, "missing parameter 'alpha'"),
+    ({"alpha": "high"}, "parameter 'alpha' expected float, got 'high' (str)"),
+    ({"alpha": 1.5}, "parameter 'alpha' = 1.5 out of range [0.0, 1.0]"),
+    ({"running_step": -0.06}, "parameter 'running_step' = -0.06 out of range (0.0, inf]"),
+    ({"init_cube_pose": {"x": 0.0, "y": 0.0}}, "missing parameter 'init_cube_pose/z'"),
+], ids=["missing_key", "wrong_type", "out_of_range", "negative_step", "missing_nested_key"])
+def test_bad_param_stops_training_before_anything_is_written(master, tmp_path, changes, expected):
+    document = yaml.safe_load(ONE_DISK_WALK.config_path.read_text())
+    for key, value in changes.items():
+        if value is None:
+            del document["moving_cube"][key]
+        else:
+            document["moving_cube"][key] = value
+    config = tmp_path / "bad.yaml"
+    config.write_text(yaml.safe_dump(document))
+    result = master.run([*CUBE_TRAINING, f"config:={config}", f"results_dir:={tmp_path / 'results'}"], timeout=120)
+    output = result.stdout + result.stderr
+    assert result.returncode == 1, output[-3000:]
+    assert str(config) in one_line(output, expected)
+    assert not (tmp_path / "results").exists(), "nothing may be written before the params are valid"
+
+
+def test_duplicate_key_in_the_config_is_refused(master, tmp_path):
+    config = tmp_path / "dup.yaml"
+    config.write_text(ONE_DISK_WALK.config_path.read_text().replace("  alpha: 0.1", "  alpha: 0.1\n  alpha: 0.9"))
+    result = master.run([*CUBE_TRAINING, f"config:={config}", f"results_dir:={tmp_path / 'results'}"], timeout=120)
+    assert result.returncode == 1
+    one_line(result.stdout + result.stderr, f"{config}: duplicate key 'alpha' at line")
+    assert not (tmp_path / "results").exists()
+
+
+@pytest.mark.parametrize("content, expected", [
+    ("moving_cube:\n  alpha: [0.1\n", "contains invalid YAML"),
+    (None, "file does not exist"),
+], ids=["malformed_yaml", "missing_config_file"])
+def test_config_roslaunch_cannot_load_gives_one_line(master, tmp_path, content, expected):
+    config = tmp_path / "config.yaml"
+    if content is not None:
+        config.write_text(content)
+    result = master.run([*CUBE_TRAINING, f"config:={config}", f"results_dir:={tmp_path / 'results'}"], timeout=120)
+    output = result.stdout + result.stderr
+    assert result.returncode == 1, output
+    assert one_line(output, expected).startswith("roslaunch_checked.py: cannot launch ")
+    assert len(output.strip().splitlines()) <= 3, output
+
+
+@pytest.mark.parametrize("args, expected", [
+    (["nepisodes:=0"], "parameter 'nepisodes' = 0 out of range [1, inf]"),
+    (["nepisodes:=many"], "parameter 'nepisodes' expected int, got 'many' (str)"),
+], ids=["nepisodes_zero", "nepisodes_text"])
+def test_bad_launch_argument_gives_one_line(master, tmp_path, args, expected):
+    result = master.run([*CUBE_TRAINING, *args, f"results_dir:={tmp_path / 'results'}"], timeout=120)
+    assert result.returncode == 1
+    assert "/movingcube_gym" in one_line(result.stdout + result.stderr, expected)
+
+
+def test_unknown_task_names_the_known_ones(master, tmp_path):
+    result = master.run([*HOPPER_TRAINING, "task:=fly", f"config:={STAY_UP.config_path}",
+                         f"results_dir:={tmp_path / 'results'}"], timeout=120)
+    assert result.returncode == 1
+    one_line(result.stdout + result.stderr, "unknown task 'fly' (known: stay_up, hop)")
+
+
+@pytest.mark.parametrize("args, expected", [
+    (["run", "drone"], "unknown robot 'drone' (known: cube, hopper; see ./ws help)"),
+    (["run", "cube", "nepisodes=5"], "'nepisodes=5' is not a launch argument NAME:=VALUE (see ./ws help)"),
+    (["frobnicate"], "unknown command 'frobnicate'"),
+], ids=["unknown_robot", "argument_without_colon_equals", "unknown_command"])
+def test_ws_refuses_bad_arguments_with_one_line(tmp_path, args, expected):
+    runner = Processes(tmp_path, cwd=REPO)
+    try:
+        result = runner.run([str(REPO / "ws"), *args], timeout=120)
+    finally:
+        runner.close()
+    assert result.returncode in (1, 2), result.stderr
+    assert one_line(result.stderr, expected).startswith("[ws] error: ")
+
+
+# -- the sim node --------------------------------------------------------------------------------
+
+def start_sim(master: RosMaster, private_params: dict, robot_description: str | None):
+    """Run the sim node alone with the given params; return its completed process (it should exit)."""
+    if robot_description is not None:
+        master.params.setParam("/robot_description", robot_description)
+    master.params.setParam("/pybullet_sim", private_params)
+    return master.run(["rosrun", "pybullet_sim", "sim_node.py"], timeout=60)
+
+
+def with_controller_joint(joint: str) -> dict:
+    params = yaml.safe_load(yaml.safe_dump(CUBE_SIM))
+    params["controllers"]["inertia_wheel_roll_joint_velocity_controller"]["joint"] = joint
+    return params
+
+
+@pytest.mark.parametrize("description, params, expected", [
+    (None, CUBE_SIM, "parameter /robot_description is missing"),
+    ("<robot name='cube'><link name='a'>", CUBE_SIM, "parameter /robot_description is not valid XML"),
+    ("<sdf version='1.6'/>", CUBE_SIM, "is not a URDF"),
+    (CUBE_URDF, with_controller_joint("no_such_joint"), "names joint 'no_such_joint'"),
+    (CUBE_URDF, {**CUBE_SIM, "time_step": "fast"}, "parameter ~time_step must be float"),
+    (CUBE_URDF, {**CUBE_SIM, "sensors": {"odom": {"type": "sonar"}}}, "unsupported sensor type"),
+], ids=["missing_description", "broken_xml", "not_urdf", "unknown_joint", "mistyped_param", "unknown_sensor"])
+def test_bad_sim_input_stops_the_sim_node_with_one_line(master, description, params, expected):
+    result = start_sim(master, params, description)
+    assert result.returncode == 1
+    error = one_line(result.stdout + result.stderr, "pybullet_sim cannot start:")
+    assert error.startswith("[FATAL]") and expected in error, result.stderr
+
+
+def test_a_urdf_that_is_not_xml_stops_training_with_the_sims_error_only(master, tmp_path):
+    """The sim's error is the one line; the training node says nothing misleading about waiting for it."""
+    urdf = tmp_path / "broken.urdf"
+    urdf.write_text("<robot name='moving_cube'><link name='a'>")
+    sim_launch = tmp_path / "broken_sim.launch"
+    sim_launch.write_text(f"""<launch>
+  <arg name="paused"/><arg name="seed"/><arg name="gui"/><arg name="robot_state_publisher"/>
+  <include file="$(find pybullet_sim)/launch/sim.launch" pass_all_args="true">
+    <arg name="urdf" value="{urdf}"/>
+    <arg name="sim_config" value="$(find moving_cube_description)/config/moving_cube_sim.yaml"/>
+    <arg name="joint_states" value="/moving_cube/joint_states"/>
+  </include>
+</launch>""")
+    training = tmp_path / "training.launch"
+    training.write_text(f"""<launch>
+  <include file="$(find robot_rl)/launch/train.launch">
+    <arg name="sim_launch" value="{sim_launch}"/><arg name="node_name" value="movingcube_gym"/>
+    <arg name="task" value="one_disk_walk"/><arg name="config" value="{ONE_DISK_WALK.config_path}"/>
+    <arg name="nepisodes" value=""/><arg name="resume" value="false"/><arg name="seed" value="0"/>
+    <arg name="results_dir" value="{tmp_path / 'results'}"/><arg name="quiet" value="false"/>
+    <arg name="gui" value="false"/><arg name="robot_state_publisher" value="false"/>
+  </include>
+  <node pkg="moving_cube_training" type="start_training.py" name="movingcube_gym" output="screen" required="true"/>
+</launch>""")
+    result = master.run([*TRAIN, str(training)], timeout=120)
+    output = result.stdout + result.stderr
+    assert result.returncode == 1, output[-3000:]
+    line = one_line(output, "[FATAL]")
+    assert "pybullet_sim cannot start: parameter /robot_description is not valid XML" in line
+    assert "not available after" not in output, output[-3000:]
+
+
+def test_a_sim_started_where_another_robots_sim_ran_starts_clean(master, tmp_path):
+    """The cube sim's private params (its wheel controller) must not leak into the hopper's sim."""
+    log = tmp_path / "cube.log"
+    with open(log, "w") as out:
+        cube = master.start(["roslaunch", "pybullet_sim", "cube_sim.launch", "robot_state_publisher:=false"],
+                            stdout=out, stderr=subprocess.STDOUT)
+    wait_for(lambda: "/pybullet_sim/step" in str(master.params.getSystemState()[2]), 60, "the cube sim")
+    cube.send_signal(signal.SIGINT)
+    cube.wait(30)
+    with open(tmp_path / "hopper.log", "w") as out:
+        master.start(["roslaunch", "pybullet_sim", "hopper_sim.launch", "robot_state_publisher:=false"],
+                     stdout=out, stderr=subprocess.STDOUT)
+    wait_for(lambda: "/pybullet_sim/step" in str(master.params.getSystemState()[2]), 60,
+             "the hopper sim (after the cube's)")
+    controllers = master.params.getParam("/pybullet_sim/controllers")
+    assert "inertia_wheel_roll_joint_velocity_controller" not in controllers
+    assert "haa_joint_position_controller" in controllers
+    master.close()
+
+
+# -- checkpoints and resume ----------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def trained_run(tmp_path_factory):
+    """A finished 12-episode cube run (checkpoint at 10 and 12)."""
+    tmp = tmp_path_factory.mktemp("trained")
+    master = RosMaster(tmp / "ros", cwd=REPO)
+    try:
+        config = cube_config(tmp / "config.yaml", nepisodes=12, nsteps=40)
+        result = master.run([*CUBE_TRAINING, f"config:={config}", f"results_dir:={tmp / 'results'}"], timeout=180)
+    finally:
+        master.close()
+    assert result.returncode == 0, (result.stdout + result.stderr)[-3000:]
+    return tmp / "results", config
+
+
+def copy_run(trained_run, tmp_path) -> tuple[Path, Path]:
+    results, config = trained_run
+    copy = tmp_path / "results"
+    subprocess.run(["cp", "-a", str(results), str(copy)], check=True)
+    return copy, config
+
+
+@pytest.mark.parametrize("checkpoint, expected", [
+    ({"format": "robot_rl.training_checkpoint/1", "episode": 10}, "not a usable checkpoint: format is"),
+    ({"format": "something else", "episode": 0}, "not a usable checkpoint: format is"),
+    ({"format": "robot_rl.training_checkpoint/2", "episode": 10}, "not a usable checkpoint: missing 'task'"),
+    (b"\x89PNG\r\n\x1a\n\x00\xff\xfe random bytes", "not a checkpoint (not UTF-8 text)"),
+    ([1, 2, 3], "not a checkpoint (a JSON list, not an object)"),
+    ("{\"format\": ", "invalid JSON"),
+], ids=["old_format_episode_10", "wrong_format_episode_0", "no_task", "random_bytes", "json_list", "truncated_json"])
+def test_a_bad_checkpoint_is_refused_and_nothing_is_lost(master, trained_run, tmp_path, checkpoint, expected):
+    results, config = copy_run(trained_run, tmp_path)
+    qtable = results / "moving_cube" / "latest" / "qtable.json"
+    qtable.write_bytes(checkpoint if isinstance(checkpoint, bytes) else
+                       checkpoint.encode() if isinstance(checkpoint, str) else json.dumps(checkpoint).encode())
+    before = run_files(results)
+    result = master.run([*CUBE_TRAINING, f"config:={config}", f"results_dir:={results}", "resume:=true"],
+                        timeout=120)
+    output = result.stdout + result.stderr
+    assert result.returncode == 1, output[-3000:]
+    assert str(qtable.resolve()) in one_line(output, expected)
+    assert run_files(results) == before, "a refused checkpoint must not change any file of the run"
+    assert episodes(results) == list(range(1, 13))
+
+
+@pytest.mark.parametrize("previous", ["none", "without_checkpoint"])
+def test_resume_with_nothing_to_resume_gives_one_line(master, tmp_path, previous):
+    results = tmp_path / "results"
+    expected = "no previous run under"
+    if previous == "without_checkpoint":
+        from robot_rl.results import RunDirectory
+        run = RunDirectory.create(results, "moving_cube", {"nepisodes": 3})
+        expected = f"no checkpoint {run.path / 'qtable.json'}"
+    result = master.run([*CUBE_TRAINING, f"results_dir:={results}", "resume:=true"], timeout=120)
+    assert result.returncode == 1
+    one_line(result.stdout + result.stderr, expected)
+
+
+def test_resume_of_another_task_is_refused(master, trained_run, tmp_path):
+    """The hopper's stay-up training resuming a cube run: its task is named in the checkpoint."""
+    results, _ = copy_run(trained_run, tmp_path)
+    (results / "monoped").mkdir()
+    (results / "monoped" / "latest").symlink_to(results / "moving_cube" / "latest")
+    before = run_files(results)
+    result = master.run([*HOPPER_TRAINING, f"results_dir:={results}", "resume:=true"], timeout=120)
+    assert result.returncode == 1
+    one_line(result.stdout + result.stderr, "it is of task 'MovingCubeOneDiskWalk-v0', this run trains 'Monoped-v0'")
+    assert run_files(results) == before
+
+
+@pytest.mark.parametrize("damage, expected", [
+    ("missing", "no checkpoint"),
+    ("random_bytes", "not a checkpoint (not UTF-8 text)"),
+    ("no_params", "params.yaml"),
+], ids=["missing_qtable", "corrupt_qtable", "missing_params"])
+def test_evaluate_refuses_a_bad_run_with_one_line(trained_run, tmp_path, damage, expected):
+    results, _ = copy_run(trained_run, tmp_path)
+    run = results / "moving_cube" / "latest"
+    if damage == "missing":
+        (run / "qtable.json").unlink()
+    elif damage == "random_bytes":
+        (run / "qtable.json").write_bytes(b"\xff\xfe\x00\x81")
+    else:
+        (run / "params.yaml").unlink()
+    runner = Processes(tmp_path, cwd=REPO)
+    try:
+        result = runner.run(["rosrun", "moving_cube_training", "evaluate.py", "--qtable", str(run)], timeout=120)
+    finally:
+        runner.close()
+    assert result.returncode == 2, result.stderr
+    assert one_line(result.stderr, expected).startswith("evaluate.py: cannot read the trained Q-table")
+
+
+# -- the env over ROS ----------------------------------------------------------------------------
+
+def env_over_ros(master: RosMaster, tmp_path: Path, env_id: str, timeout: float = 3.0) -> subprocess.CompletedProcess:
+    """gymnasium.make(env_id, backend="ros") in a fresh process without rospy.init_node, as a user writes it."""
+    script = tmp_path / "make_env.py"
+    script.write_text(f"""import gymnasium, hopper_training, moving_cube_training
+env = gymnasium.make({env_id!r}, backend="ros", ros_timeout={timeout})
+env.reset(seed=0)
+env.step(0)
+env.close()
+print("stepped")
+""")
+    return master.run([sys.executable, str(script)], timeout=60)
+
+
+def test_env_over_ros_with_no_master_says_so_at_once(tmp_path):
+    runner = Processes(tmp_path, cwd=REPO, ROS_MASTER_URI="http://127.0.0.1:1")
+    script = tmp_path / "make_env.py"
+    script.write_text("import gymnasium, moving_cube_training\n"
+                      "gymnasium.make('MovingCubeOneDiskWalk-v0', backend='ros')\n")
+    started = time.monotonic()
+    try:
+        result = runner.run([sys.executable, str(script)], timeout=60)
+    finally:
+        runner.close()
+    assert result.returncode == 1 and time.monotonic() - started < 20
+    one_line(result.stderr.replace("Traceback", "traceback"),
+             "no ROS master at http://127.0.0.1:1 (ROS_MASTER_URI)")
+
+
+def test_env_over_ros_with_no_sim_names_the_service_and_the_launch(master, tmp_path):
+    started = time.monotonic()
+    result = env_over_ros(master, tmp_path, "Monoped-v0", timeout=2.0)
+    assert result.returncode == 1 and time.monotonic() - started < 30
+    line = one_line(result.stderr.replace("Traceback", "traceback"), "service /gazebo/pause_physics is not available")
+    assert "roslaunch pybullet_sim hopper_sim.launch" in line
+
+
+def test_env_over_ros_without_init_node_works(master, tmp_path):
+    master.start(["roslaunch", "pybullet_sim", "cube_sim.launch", "robot_state_publisher:=false"],
+                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    result = env_over_ros(master, tmp_path, "MovingCubeOneDiskWalk-v0", timeout=10.0)
+    assert result.returncode == 0 and result.stdout.strip().endswith("stepped"), result.stderr[-3000:]
+    master.close()
+
+
+def test_env_of_another_robot_is_refused_with_the_reason(master, tmp_path):
+    master.start(["roslaunch", "pybullet_sim", "cube_sim.launch", "robot_state_publisher:=false"],
+                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    result = env_over_ros(master, tmp_path, "Monoped-v0", timeout=10.0)
+    assert result.returncode == 1
+    line = one_line(result.stderr.replace("Traceback", "traceback"),
+                    "the sim node /pybullet_sim simulates /moving_cube, not /monoped")
+    assert "roslaunch pybullet_sim hopper_sim.launch" in line
+    master.close()
+
+
+# -- processes that die, freeze or are stopped during training ------------------------------------
+
+def start_cube_training(master: RosMaster, tmp_path: Path, log: Path, **changes) -> subprocess.Popen:
+    """A long cube training (angle limits out of reach: every episode lasts nsteps)."""
+    config = cube_config(tmp_path / "config.yaml", **{"nepisodes": 400, "nsteps": 50, "max_pitch_angle": 10.0,
+                                                       "max_yaw_angle": 10.0, **changes})
+    with open(log, "w") as out:
+        return master.start([*CUBE_TRAINING, f"config:={config}", f"results_dir:={tmp_path / 'results'}"],
+                            stdout=out, stderr=subprocess.STDOUT)
+
+
+def logged_episode(log: Path, episode: int):
+    return lambda: f"EP: {episode} " in log.read_text()
+
+
+def test_ctrl_c_stops_with_a_checkpoint_and_an_incomplete_summary_then_resumes(master, tmp_path):
+    log = tmp_path / "run.log"
+    launch = start_cube_training(master, tmp_path, log)
+    wait_for(logged_episode(log, 15), 120, "episode 15")
+    launch.send_signal(signal.SIGINT)  # Ctrl-C reaches roslaunch, which stops every node with SIGINT
+    assert launch.wait(60) == INTERRUPTED, log.read_text()[-3000:]
+    output = log.read_text()
+    line = one_line(output, "training interrupted after episode")
+    saved = int(re.search(r"after episode (\d+):", line).group(1))
+    assert saved >= 15
+    results = tmp_path / "results"
+    summary = json.loads((results / "moving_cube" / "latest" / "summary.json").read_text())
+    assert (summary["completed"], summary["stopped"], summary["episodes"]) == (False, "interrupted", saved)
+    assert json.loads((results / "moving_cube" / "latest" / "qtable.json").read_text())["episode"] == saved
+    assert episodes(results) == list(range(1, saved + 1)), "the interrupted episode is not logged"
+
+
+def test_sigkill_of_the_sim_stops_training_with_one_line_and_a_checkpoint(master, tmp_path):
+    log = tmp_path / "run.log"
+    launch = start_cube_training(master, tmp_path, log)
+    wait_for(logged_episode(log, 12), 120, "episode 12")
+    os.kill(node_pid(master, "/pybullet_sim"), signal.SIGKILL)
+    assert launch.wait(60) == 128 + signal.SIGKILL, "the sim's death ends the launch with its code"
+    output = log.read_text()
+    one_line(output, "continue with resume:=true")  # "training interrupted" or "training stopped"
+    results = tmp_path / "results"
+    checkpoint = json.loads((results / "moving_cube" / "latest" / "qtable.json").read_text())
+    assert episodes(results)[:checkpoint["episode"]] == list(range(1, checkpoint["episode"] + 1))
+    assert checkpoint["episode"] >= 10
+
+
+def test_a_frozen_sim_stops_training_within_the_timeout(master, tmp_path):
+    """SIGSTOP on the sim: the step call has a deadline; the run is saved and the node says why."""
+    log = tmp_path / "run.log"
+    config = cube_config(tmp_path / "config.yaml", nepisodes=400, nsteps=50, max_pitch_angle=10.0, max_yaw_angle=10.0)
+    master.params.setParam("/movingcube_gym/timeout", 2.0)
+    with open(log, "w") as out:
+        launch = master.start([*CUBE_TRAINING, f"config:={config}", f"results_dir:={tmp_path / 'results'}"],
+                              stdout=out, stderr=subprocess.STDOUT)
+    wait_for(logged_episode(log, 12), 120, "episode 12")
+    sim = node_pid(master, "/pybullet_sim")
+    os.kill(sim, signal.SIGSTOP)
+    try:
+        wait_for(lambda: "did not answer within" in log.read_text(), 30, "the training node giving up on the sim")
+    finally:
+        os.kill(sim, signal.SIGCONT)
+    assert launch.wait(60) == 1
+    line = one_line(log.read_text(), "did not answer within 2.0 s")
+    assert "[FATAL]" in line and "continue with resume:=true" in line
+    summary = json.loads((tmp_path / "results" / "moving_cube" / "latest" / "summary.json").read_text())
+    assert summary["completed"] is False and summary["stopped"].startswith("error: service")
+    assert summary["episodes"] == episodes(tmp_path / "results")[-1]
+
+
+def test_sigkill_of_the_trainer_between_checkpoints_then_resume(master, tmp_path):
+    log = tmp_path / "run.log"
+    launch = start_cube_training(master, tmp_path, log, nepisodes=40)
+    results = tmp_path / "results"
+    qtable = results / "moving_cube" / "latest" / "qtable.json"
+
+    def checkpoint_then_more():
+        return qtable.exists() and 10 <= json.loads(qtable.read_text())["episode"] < len(episodes(results))
+    wait_for(checkpoint_then_more, 120, "a checkpoint at episode >= 10 followed by another episode")
+    os.kill(node_pid(master, "/movingcube_gym"), signal.SIGKILL)
+    assert launch.wait(60) == 128 + signal.SIGKILL
+    saved = json.loads(qtable.read_text())["episode"]
+    logged = episodes(results)
+    assert len(logged) > saved and not (results / "moving_cube" / "latest" / "summary.json").exists()
+    checkpointed = (results / "moving_cube" / "latest" / "episodes.csv").read_text().split("\n")[:saved + 1]
+
+    result = master.run([*CUBE_TRAINING, f"config:={tmp_path / 'config.yaml'}", f"results_dir:={results}",
+                         "resume:=true"], timeout=180)
+    output = result.stdout + result.stderr
+    assert result.returncode == 0, output[-3000:]
+    one_line(output, f"after episode {saved} (epsilon")
+    assert episodes(results) == list(range(1, 41)), "no episode lost or repeated"
+    assert (results / "moving_cube" / "latest" / "episodes.csv").read_text().split("\n")[:saved + 1] == checkpointed
+
+
+def test_results_dir_that_is_a_file_gives_one_line(master, tmp_path):
+    not_a_dir = tmp_path / "results"
+    not_a_dir.write_text("a file")
+    config = cube_config(tmp_path / "config.yaml", nepisodes=2, nsteps=10)
+    result = master.run([*CUBE_TRAINING, f"config:={config}", f"results_dir:={not_a_dir}"], timeout=120)
+    assert result.returncode == 1
+    assert str(not_a_dir) in one_line(result.stdout + result.stderr, "cannot write the results")
+    assert not_a_dir.read_text() == "a file"
+
+
+def test_disk_full_gives_one_line_and_keeps_the_last_checkpoint(master, tmp_path):
+    """The results on a 256 KiB tmpfs: a long run fills it; the run stops with one line naming the file,
+    and its last checkpoint still loads."""
+    disk = tmp_path / "small_disk"
+    disk.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(disk)]).returncode != 0:
+        pytest.skip("mounting a tmpfs needs root")
+    try:
+        config = cube_config(tmp_path / "config.yaml", nepisodes=5000, nsteps=30)
+        result = master.run([*CUBE_TRAINING, f"config:={config}", f"results_dir:={disk}"], timeout=600)
+        output = result.stdout + result.stderr
+        assert result.returncode == 1, output[-3000:]
+        assert "No space left on device" in one_line(output, f"cannot write the results: {disk}")
+        run = disk / "moving_cube" / "latest"
+        checkpoint = json.loads((run / "qtable.json").read_text())
+        assert checkpoint["episode"] >= 10 and checkpoint["episode"] <= len(episodes(disk))
+    finally:
+        subprocess.run(["umount", str(disk)], check=True)
+
+
+def test_two_runs_in_one_checkout_at_once(tmp_path):
+    """Two trainings side by side, each on its own master, into the same results folder."""
+    masters = [RosMaster(tmp_path / f"ros{i}", cwd=REPO) for i in range(2)]
+    config = cube_config(tmp_path / "config.yaml", nepisodes=5, nsteps=30)
+    try:
+        launches = [m.start([*CUBE_TRAINING, f"config:={config}", f"results_dir:={tmp_path / 'results'}"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for m in masters]
+        assert [launch.wait(180) for launch in launches] == [0, 0]
+        assert all(m.leftovers() == [] for m in masters)
+    finally:
+        for m in masters:
+            m.close()
+    runs = [p for p in (tmp_path / "results" / "moving_cube").iterdir() if p.name != "latest"]
+    assert len(runs) == 2
+    assert all(json.loads((run / "summary.json").read_text())["completed"] for run in runs)
+
+
+def test_every_socket_of_a_training_run_is_on_loopback_but_xmlrpcpps(tmp_path):
+    """ROS_IP and ROS_HOSTNAME as ./ws sets them; roslaunch starts the master and rosout itself, as with
+    ./ws run. Every listening socket is on 127.0.0.1, the C++ nodes' TCPROS servers too (roscpp binds
+    them to loopback when ROS_IP is 127.*), but for the XML-RPC servers of the C++ nodes (rosout,
+    robot_state_publisher): xmlrpcpp binds INADDR_ANY whatever ROS_IP says (ros_comm
+    utilities/xmlrpcpp/src/XmlRpcSocket.cpp); roscpp still refuses TCPROS peers off this host."""
+    uri = f"http://127.0.0.1:{free_port()}"
+    runner = Processes(tmp_path, cwd=REPO, ROS_MASTER_URI=uri, ROS_HOSTNAME="127.0.0.1", ROS_IP="127.0.0.1")
+    log = tmp_path / "run.log"
+    config = cube_config(tmp_path / "config.yaml", nepisodes=400, nsteps=50, max_pitch_angle=10.0,
+                         max_yaw_angle=10.0)
+    try:
+        with open(log, "w") as out:
+            runner.start([*CUBE_TRAINING, f"config:={config}", f"results_dir:={tmp_path / 'results'}",
+                          "robot_state_publisher:=true"], stdout=out, stderr=subprocess.STDOUT)
+        wait_for(logged_episode(log, 2), 120, "episode 2")
+        listening = _listening_sockets()
+        pids = processes_using(uri)
+        names = {pid: Path(f"/proc/{pid}/comm").read_text().strip() for pid in pids}
+        assert {"rosmaster", "rosout", "robot_state_pub"} <= set(names.values()), names
+        master = rosgraph.Master("/pytest", master_uri=uri)
+        xmlrpc_ports = {int(master.lookupNode(node).rstrip("/").rsplit(":", 1)[1])
+                        for node in ("/rosout", "/robot_state_publisher")}
+        exceptions = []
+        for pid in pids:
+            for inode in _socket_inodes(pid):
+                if inode in listening and not listening[inode].startswith("127.0.0.1:"):
+                    assert names[pid] in ("rosout", "robot_state_pub"), f"{names[pid]} listens on {listening[inode]}"
+                    assert int(listening[inode].rsplit(":", 1)[1]) in xmlrpc_ports, listening[inode]
+                    exceptions.append(names[pid])
+        assert sorted(exceptions) == ["robot_state_pub", "rosout"], exceptions
+    finally:
+        runner.close()
+    assert processes_using(uri) == []
+
+
+def _listening_sockets() -> dict[int, str]:
+    """inode -> "address:port" of every listening TCP socket (IPv4 and IPv6) of this machine."""
+    sockets = {}
+    for table, width in (("/proc/net/tcp", 8), ("/proc/net/tcp6", 32)):
+        for line in Path(table).read_text().splitlines()[1:]:
+            fields = line.split()
+            if fields[3] == "0A":  # LISTEN
+                address, port = fields[1].split(":")
+                if width == 8:
+                    host = ".".join(str(int(address[i:i + 2], 16)) for i in (6, 4, 2, 0))
+                else:
+                    host = "::1" if address == "0" * 24 + "01000000" else f"[{address}]"
+                sockets[int(fields[9])] = f"{host}:{int(port, 16)}"
+    return sockets
+
+
+def _socket_inodes(pid: int) -> list[int]:
+    inodes = []
+    for fd in Path(f"/proc/{pid}/fd").iterdir():
+        try:
+            target = os.readlink(fd)
+        except OSError:
+            continue
+        if target.startswith("socket:["):
+            inodes.append(int(target[8:-1]))
+    return inodes
