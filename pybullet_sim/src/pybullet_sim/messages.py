@@ -10,7 +10,7 @@ from geometry_msgs.msg import TransformStamped, Vector3, Wrench
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, JointState
 
-from pybullet_sim.msg import ContactsState, ContactState
+from gazebo_msgs.msg import ContactsState, ContactState
 from .readings import ContactPoint, ContactReading, ImuReading, JointStateReading, OdometryReading
 
 

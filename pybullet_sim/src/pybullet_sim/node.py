@@ -28,7 +28,7 @@ from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Empty, EmptyResponse
 
-from pybullet_sim.msg import ContactsState
+from gazebo_msgs.msg import ContactsState
 from pybullet_sim.srv import Step, StepResponse
 from . import messages
 from .client import STEP_SERVICE, synchronous_publisher

@@ -104,7 +104,7 @@ class RosBackend(Backend):
 
         from pybullet_sim import messages
         from pybullet_sim.client import CommandPublisher, SensorSubscriber, SimConnection, SimConnectionError
-        from pybullet_sim.msg import ContactsState
+        from gazebo_msgs.msg import ContactsState
 
         self.timeout = timeout
         self.sim = SimConnection(timeout)  # waits (bounded) for the sim node's services
