@@ -17,11 +17,18 @@ from the real packages and committed to public repositories, never computed from
   36d99a97... (with start_asap and timeout) and response 6f6da388....
 """
 import pytest
+
 from controller_manager_msgs.msg import ControllerState, HardwareInterfaceResources
 from controller_manager_msgs.srv import ListControllers, LoadController, SwitchController, UnloadController
 from gazebo_msgs.msg import ContactsState, ContactState, LinkState, ModelState, ODEPhysics
-from gazebo_msgs.srv import (GetLinkState, GetModelState, GetPhysicsProperties, GetWorldProperties, SetModelState,
-                             SetPhysicsProperties)
+from gazebo_msgs.srv import (
+    GetLinkState,
+    GetModelState,
+    GetPhysicsProperties,
+    GetWorldProperties,
+    SetModelState,
+    SetPhysicsProperties,
+)
 
 EMPTY = "d41d8cd98f00b204e9800998ecf8427e"  # md5 of an empty definition: an empty request
 
