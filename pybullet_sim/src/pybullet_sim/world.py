@@ -128,6 +128,32 @@ def _rotate(quaternion: Sequence[float], vector: Sequence[float]) -> Tuple[float
     return (vector[0] + w * t[0] + turned[0], vector[1] + w * t[1] + turned[1], vector[2] + w * t[2] + turned[2])
 
 
+def relative_state(state: FrameState, frame: FrameState) -> FrameState:
+    """A world-frame state expressed in another frame, as gazebo_ros's get_model_state and get_link_state do:
+    the pose relative to the frame, the velocity differences turned into the frame's axes."""
+    x, y, z, w = frame.orientation
+    inverse = (-x, -y, -z, w)
+    position = _rotate(inverse, [a - b for a, b in zip(state.position, frame.position, strict=True)])
+    linear = _rotate(inverse, [a - b for a, b in zip(state.linear_velocity, frame.linear_velocity, strict=True)])
+    angular = _rotate(inverse, [a - b for a, b in zip(state.angular_velocity, frame.angular_velocity, strict=True)])
+    return FrameState(position, _quaternion_multiply(inverse, state.orientation), linear, angular)
+
+
+def absolute_state(state: FrameState, frame: FrameState) -> FrameState:
+    """A state given in another frame, in the world frame, as gazebo_ros's set_model_state takes it: the pose
+    composed with the frame's, the velocities turned into world axes (the frame's own velocity is not added)."""
+    turned = [_rotate(frame.orientation, v) for v in (state.position, state.linear_velocity, state.angular_velocity)]
+    position = tuple(a + b for a, b in zip(turned[0], frame.position, strict=True))
+    return FrameState(position, _quaternion_multiply(frame.orientation, _normalized(state.orientation)),
+                      turned[1], turned[2])
+
+
+def _normalized(quaternion: Sequence[float]) -> Tuple[float, float, float, float]:
+    """A unit quaternion; all zeros (a default geometry_msgs/Pose) means no rotation, as in Gazebo."""
+    norm = math.sqrt(sum(q * q for q in quaternion))
+    return (0.0, 0.0, 0.0, 1.0) if norm < 1e-12 else tuple(q / norm for q in quaternion)
+
+
 def _check_time_step(time_step: float, error: type) -> None:
     if not (isinstance(time_step, (int, float)) and math.isfinite(time_step) and time_step >= MIN_TIME_STEP):
         raise error(f"time_step must be a finite number of seconds >= {MIN_TIME_STEP:g}, got {time_step!r}")
@@ -404,6 +430,18 @@ class World:
         """The robot's pose and twist: those of its base link's URDF frame."""
         return self.link_state(self.link_names[0])
 
+    def link_name(self, name: str) -> str:
+        """The link a Gazebo name means: scoped ("moving_cube::cube_body") or not; ValueError naming it if none."""
+        model, separator, link = name.rpartition("::")
+        if (not separator or model == self.robot_name) and link in self._link_index:
+            return link
+        raise ValueError(f"{self.robot_name} has no link {name!r} (links: "
+                         f"{', '.join(f'{self.robot_name}::{link}' for link in self.link_names)})")
+
+    def entity_state(self, name: str) -> FrameState:
+        """The state of what a Gazebo entity name means here: the model (robot name) or one of its links."""
+        return self.model_state() if name == self.robot_name else self.link_state(self.link_name(name))
+
     def link_state(self, link: str) -> FrameState:
         """Pose and twist of a link's URDF frame in the world; ValueError naming the link if there is none."""
         if link not in self._link_index:
@@ -431,8 +469,7 @@ class World:
         numbers = (*state.position, *state.orientation, *state.linear_velocity, *state.angular_velocity)
         if len(numbers) != 13 or not all(math.isfinite(v) for v in numbers):
             raise ValueError(f"the pose and twist must be finite numbers, got {state!r}")
-        norm = math.sqrt(sum(q * q for q in state.orientation))
-        orientation = (0.0, 0.0, 0.0, 1.0) if norm < 1e-12 else tuple(q / norm for q in state.orientation)
+        orientation = _normalized(state.orientation)
         inertial_position, inertial_orientation = p.getDynamicsInfo(self._body, -1, physicsClientId=self._cid)[3:5]
         com = tuple(a + b for a, b in zip(state.position, _rotate(orientation, inertial_position), strict=True))
         com_orientation = _quaternion_multiply(orientation, inertial_orientation)
