@@ -11,6 +11,7 @@ from sensor_msgs.msg import JointState
 
 from pybullet_sim import messages
 from pybullet_sim.client import CommandPublisher, SensorSubscriber, SimConnection, SimConnectionError
+from pybullet_sim.srv import StepRequest
 
 WHEEL_COMMAND = "/moving_cube/inertia_wheel_roll_joint_velocity_controller/command"
 TIMEOUT = 5.0
@@ -53,8 +54,17 @@ class CubeLockstepTest(unittest.TestCase):
             self.sim.pause()
 
     def test_step_of_zero_is_refused(self):
-        with self.assertRaisesRegex(SimConnectionError, "steps must be >= 1"):
+        with self.assertRaisesRegex(SimConnectionError, "steps must be between 1 and 100000"):
             self.sim.step(0)
+
+    def test_step_beyond_the_maximum_is_refused(self):
+        """Step.srv's MAX_STEPS (100 s of sim time at 1 ms): more is refused and nothing moves."""
+        before = self.step(1)[0]
+        for steps in (StepRequest.MAX_STEPS + 1, 1_000_000_000):
+            expected = f"between 1 and {StepRequest.MAX_STEPS} \\(got {steps}\\)"
+            with self.assertRaisesRegex(SimConnectionError, expected):
+                self.sim.step(steps)
+        self.assertEqual(self.step(1)[0], before + rospy.Duration(0, 1_000_000))
 
     def test_step_advances_exactly_n_physics_steps(self):
         stamp, joints, odom = self.step(40)

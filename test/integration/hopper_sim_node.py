@@ -16,8 +16,8 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, JointState
 from tf2_msgs.msg import TFMessage
 
+from gazebo_msgs.msg import ContactsState
 from pybullet_sim.client import CommandPublisher, SensorSubscriber, SimConnection
-from pybullet_sim.msg import ContactsState
 
 TIMEOUT = 10.0
 GRAVITY = 9.81
@@ -118,7 +118,7 @@ class HopperSimTest(unittest.TestCase):
         self.step(1)
         published = dict(rospy.get_published_topics())
         for topic, msg_type in (("/monoped/joint_states", "sensor_msgs/JointState"), ("/odom", "nav_msgs/Odometry"),
-                                ("/monoped/imu/data", "sensor_msgs/Imu"), (CONTACT_TOPIC, "pybullet_sim/ContactsState"),
+                                ("/monoped/imu/data", "sensor_msgs/Imu"), (CONTACT_TOPIC, "gazebo_msgs/ContactsState"),
                                 ("/tf", "tf2_msgs/TFMessage"), ("/clock", "rosgraph_msgs/Clock")):
             self.assertEqual(published.get(topic), msg_type, topic)
         _, subscribers, services = rosgraph.Master("/hopper_sim_test").getSystemState()

@@ -63,6 +63,7 @@ class RobotConfig:
     joint_state_rate: float
     controllers: Tuple[JointControllerConfig, ...]
     sensors: Tuple[SensorConfig, ...]
+    joint_state_controller: str = "joint_state_controller"  # the name of the JointStateController
 
     @property
     def joint_states_topic(self) -> str:
@@ -115,14 +116,18 @@ def parse_robot_config(params: Mapping[str, Any], where: str = "~") -> RobotConf
     rpy = tuple(_number(spawn, k, spawn_where, 0.0) for k in ("roll", "pitch", "yaw"))
 
     controllers = []
-    joint_state_rate = None
+    joint_state_rate = joint_state_controller = None
     for name, entry in sorted(_mapping(params, "controllers", where).items()):
         c_where = f"{where}/controllers/{name}"
         if not isinstance(entry, dict):
             raise ConfigError(f"parameter {c_where} must be a dictionary")
         ctype = _text(entry, "type", c_where)
         if ctype == JOINT_STATE_CONTROLLER:
+            if joint_state_controller is not None:
+                raise ConfigError(f"parameter {where}/controllers has two {JOINT_STATE_CONTROLLER}s: "
+                                  f"{joint_state_controller} and {name}")
             joint_state_rate = _number(entry, "publish_rate", c_where, minimum=0.0, exclusive_minimum=True)
+            joint_state_controller = name
             continue
         if ctype not in (VELOCITY_CONTROLLER, POSITION_CONTROLLER):
             raise ConfigError(f"parameter {c_where}/type: unsupported controller type {ctype!r} "
@@ -152,4 +157,5 @@ def parse_robot_config(params: Mapping[str, Any], where: str = "~") -> RobotConf
             update_rate=_number(entry, "update_rate", s_where, minimum=0.0, exclusive_minimum=True),
             gaussian_noise=_number(entry, "gaussian_noise", s_where, 0.0, minimum=0.0)))
     return RobotConfig(robot_namespace=namespace, spawn_xyz=xyz, spawn_rpy=rpy, joint_state_rate=joint_state_rate,
-                       controllers=tuple(controllers), sensors=tuple(sensors))
+                       controllers=tuple(controllers), sensors=tuple(sensors),
+                       joint_state_controller=joint_state_controller)

@@ -6,12 +6,15 @@ into the same readings, so task envs never see a message type.
 from __future__ import annotations
 
 import rospy
-from geometry_msgs.msg import TransformStamped, Vector3, Wrench
+from controller_manager_msgs.msg import ControllerState, HardwareInterfaceResources
+from gazebo_msgs.msg import ContactsState, ContactState, ODEPhysics
+from geometry_msgs.msg import Pose, TransformStamped, Twist, Vector3, Wrench
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, JointState
 
-from pybullet_sim.msg import ContactsState, ContactState
-from .readings import ContactPoint, ContactReading, ImuReading, JointStateReading, OdometryReading
+from .controller_manager import ControllerInfo
+from .physics_properties import OdeConfig
+from .readings import ContactPoint, ContactReading, FrameState, ImuReading, JointStateReading, OdometryReading
 
 
 def _vector(values) -> Vector3:
@@ -120,3 +123,29 @@ def contact_reading(msg: ContactsState) -> ContactReading:
         total_torque = _tuple3(state.total_wrench.torque)
     return ContactReading(stamp=msg.header.stamp.to_sec(), frame_id=msg.header.frame_id, contacts=tuple(points),
                           total_force=total_force, total_torque=total_torque)
+
+
+def pose_twist_msgs(state: FrameState) -> tuple:
+    """A FrameState as (geometry_msgs/Pose, geometry_msgs/Twist)."""
+    pose = Pose()
+    pose.position.x, pose.position.y, pose.position.z = state.position
+    pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = state.orientation
+    return pose, Twist(linear=_vector(state.linear_velocity), angular=_vector(state.angular_velocity))
+
+
+def frame_state(pose: Pose, twist: Twist) -> FrameState:
+    return FrameState(_tuple3(pose.position), _quaternion_tuple(pose.orientation), _tuple3(twist.linear),
+                      _tuple3(twist.angular))
+
+
+def ode_config(msg: ODEPhysics) -> OdeConfig:
+    return OdeConfig(**{name: getattr(msg, name) for name in ODEPhysics.__slots__})
+
+
+def ode_physics_msg(config: OdeConfig) -> ODEPhysics:
+    return ODEPhysics(**{name: getattr(config, name) for name in ODEPhysics.__slots__})
+
+
+def controller_state_msg(info: ControllerInfo) -> ControllerState:
+    return ControllerState(name=info.name, state=info.state, type=info.type, claimed_resources=[
+        HardwareInterfaceResources(hardware_interface=info.hardware_interface, resources=list(info.resources))])

@@ -6,6 +6,12 @@ loop advances physics at ~real_time_factor x wall time (0 = as fast as possible)
 sensor at its own rate of sim time, and paused, where time only moves through the lockstep service
 ~step (pybullet_sim/Step), which publishes every sensor once per call.
 
+Services, with Gazebo's names and types: /gazebo/{pause,unpause}_physics, reset_{simulation,world}
+(std_srvs/Empty), /gazebo/{get,set}_physics_properties, get_world_properties, {get,set}_model_state,
+get_link_state (gazebo_msgs; see physics_properties for what PyBullet honours), and ros_control's
+<robot_namespace>/controller_manager/{switch,list,load,unload}_controller(s) (controller_manager_msgs;
+see controller_manager). Bad requests get success false (ok false) and change nothing.
+
 Private params: ~time_step (0.001 s), ~real_time_factor (1.0), ~paused (false), ~gui (false), ~seed (0),
 ~command_timeout (2.0 s: how long ~step waits for the commands its caller announced),
 ~pub_clock_frequency (100 Hz of wall time at most for /clock, gazebo_ros's default), plus the robot's
@@ -27,15 +33,28 @@ from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Empty, EmptyResponse
 
-from pybullet_sim.msg import ContactsState
-from pybullet_sim.srv import Step, StepResponse
-from . import messages
+from controller_manager_msgs.srv import (ListControllers, ListControllersResponse, LoadController,
+                                         LoadControllerResponse, SwitchController, SwitchControllerResponse,
+                                         UnloadController, UnloadControllerResponse)
+from gazebo_msgs.msg import ContactsState, LinkState
+from gazebo_msgs.srv import (GetLinkState, GetLinkStateResponse, GetModelState, GetModelStateResponse,
+                             GetPhysicsProperties, GetPhysicsPropertiesResponse, GetWorldProperties,
+                             GetWorldPropertiesResponse, SetModelState, SetModelStateResponse, SetPhysicsProperties,
+                             SetPhysicsPropertiesResponse)
+from geometry_msgs.msg import Vector3
+from pybullet_sim.srv import Step, StepRequest, StepResponse
+from . import messages, physics_properties
 from .client import STEP_SERVICE, synchronous_publisher
 from .config import ConfigError, SensorConfig, parse_robot_config
-from .world import UrdfError, World
+from .controller_manager import ControllerManager
+from .physics_properties import OdeConfig, PhysicsProperties
+from .world import UrdfError, World, absolute_state, relative_state
 
 _SENSOR_MESSAGES = {"p3d": (Odometry, messages.odometry_msg), "imu": (Imu, messages.imu_msg),
                     "contact": (ContactsState, messages.contacts_msg)}
+WORLD_FRAMES = ("", "world", "map", "/map")  # the names gazebo_ros takes for the world frame
+STEP_BATCH = 10  # physics steps between two looks at the clock during a lockstep call
+STEP_SLICE = 0.02  # s of wall time a lockstep call holds the World before it lets other services in
 
 
 def _param(params: dict, key: str, kind, default, minimum=None):
@@ -72,7 +91,7 @@ class _Schedule:
 class SimNode:
     def __init__(self):
         params = rospy.get_param("~", {})
-        self.time_step = _param(params, "time_step", float, 0.001, minimum=1e-6)
+        time_step = _param(params, "time_step", float, 0.001, minimum=1e-6)
         self.real_time_factor = _param(params, "real_time_factor", float, 1.0, minimum=0.0)
         self._paused = _param(params, "paused", bool, False)
         self.command_timeout = _param(params, "command_timeout", float, 2.0, minimum=0.0)
@@ -87,9 +106,12 @@ class SimNode:
         if not isinstance(urdf, str):
             raise UrdfError(f"parameter {description_param} must hold the URDF as a string")
         self.config = parse_robot_config(params, where=rospy.get_name())
-        self.world = World(urdf, self.config, time_step=self.time_step, seed=seed, gui=gui,
+        self.world = World(urdf, self.config, time_step=time_step, seed=seed, gui=gui,
                            urdf_source=f"parameter {description_param}")
-        self._step_ns = round(self.time_step * 1e9)
+        self.controllers = ControllerManager(self.config, self.world)
+        self._gui = gui
+        self._ode = OdeConfig()  # the last accepted ode_config, for get_physics_properties
+        self._said_not_honoured = set()  # ode_config fields already logged as not honoured
 
         # One lock guards the World, with two conditions on it: `_run_state` wakes the main loop on
         # unpause, `_commands_arrived` wakes a step call waiting for its announced commands. Threads
@@ -110,8 +132,8 @@ class SimNode:
                               _SENSOR_MESSAGES[sensor.type][1]) for sensor in self.config.sensors]
         self._tf = tf2_ros.TransformBroadcaster()
         self._last_clock_wall = -math.inf
-        self._joint_schedule = _Schedule(self.config.joint_state_rate, self.time_step)
-        self._sensor_schedules = [_Schedule(sensor.update_rate, self.time_step) for sensor in self.config.sensors]
+        self._pace_origin = None  # (wall, sim) at which the free-running loop's pacing restarted
+        self._make_schedules()
 
         self._command_topics = {}
         for controller in self.config.controllers:
@@ -123,10 +145,23 @@ class SimNode:
         rospy.Service("/gazebo/reset_simulation", Empty, self._handle_reset_simulation)
         rospy.Service("/gazebo/reset_world", Empty, self._handle_reset_world)
         rospy.Service(STEP_SERVICE, Step, self._handle_step)
+        for name, srv_type, handler in (
+                ("get_physics_properties", GetPhysicsProperties, self._handle_get_physics),
+                ("set_physics_properties", SetPhysicsProperties, self._handle_set_physics),
+                ("get_world_properties", GetWorldProperties, self._handle_get_world),
+                ("get_model_state", GetModelState, self._handle_get_model_state),
+                ("set_model_state", SetModelState, self._handle_set_model_state),
+                ("get_link_state", GetLinkState, self._handle_get_link_state)):
+            rospy.Service(f"/gazebo/{name}", srv_type, handler)
+        manager = f"{self.config.robot_namespace}/controller_manager"
+        rospy.Service(f"{manager}/switch_controller", SwitchController, self._handle_switch_controller)
+        rospy.Service(f"{manager}/list_controllers", ListControllers, self._handle_list_controllers)
+        rospy.Service(f"{manager}/load_controller", LoadController, self._handle_load_controller)
+        rospy.Service(f"{manager}/unload_controller", UnloadController, self._handle_unload_controller)
         with self._lock:
             self._publish_all(force_clock=True)
         rospy.loginfo("pybullet_sim: %s loaded, time step %.4f s, %s, real_time_factor %.2f",
-                      self.world.robot_name, self.time_step, "paused" if self._paused else "running",
+                      self.world.robot_name, time_step, "paused" if self._paused else "running",
                       self.real_time_factor)
 
     # -- helpers --------------------------------------------------------------------------------
@@ -143,11 +178,12 @@ class SimNode:
                 self._waiters -= 1
 
     def _stamp(self) -> rospy.Time:
-        nanoseconds = self.world.step_count * self._step_ns
+        nanoseconds = self.world.time_ns
         return rospy.Time(nanoseconds // 1_000_000_000, nanoseconds % 1_000_000_000)
 
     def _publish_joint_states(self, stamp):
-        self._joint_pub.publish(messages.joint_state_msg(self.world.read_joint_states(), stamp))
+        if self.controllers.joint_states_running:  # a stopped joint_state_controller publishes nothing
+            self._joint_pub.publish(messages.joint_state_msg(self.world.read_joint_states(), stamp))
 
     def _publish_sensor(self, sensor: SensorConfig, publisher, to_msg, stamp):
         publisher.publish(to_msg(self.world.read_sensor(sensor), stamp))
@@ -181,10 +217,34 @@ class SimNode:
             if schedule.due(count):
                 self._publish_sensor(sensor, publisher, to_msg, stamp)
 
+    def _make_schedules(self):
+        """Each stream's period in physics steps (again after the time step changes), from the next step."""
+        self._joint_schedule = _Schedule(self.config.joint_state_rate, self.world.time_step)
+        self._sensor_schedules = [_Schedule(sensor.update_rate, self.world.time_step) for sensor in self.config.sensors]
+        self._restart_schedules()
+
     def _restart_schedules(self):
         count = self.world.step_count
         for schedule in (self._joint_schedule, *self._sensor_schedules):
             schedule.restart(count)
+
+    def _step_world(self, steps: int) -> None:
+        """Advance `steps` physics steps (World lock held), letting the other services in every STEP_SLICE."""
+        done, slice_end = 0, time.monotonic() + STEP_SLICE
+        while done < steps:
+            batch = min(STEP_BATCH, steps - done)
+            self.world.step(batch)
+            done += batch
+            if done < steps and time.monotonic() >= slice_end:
+                self._lock.release()
+                try:
+                    time.sleep(0.0005)  # Python locks are not fair: give the waiting callbacks the lock
+                finally:
+                    self._lock.acquire()
+                if rospy.is_shutdown():
+                    raise rospy.ServiceException(f"{STEP_SERVICE} interrupted after {done} of {steps} steps: the "
+                                                 f"sim node is shutting down")
+                slice_end = time.monotonic() + STEP_SLICE
 
     # -- callbacks ------------------------------------------------------------------------------
     def _on_command(self, msg: Float64, topic: str):
@@ -230,8 +290,9 @@ class SimNode:
 
     def _handle_step(self, request):
         caller = request._connection_header.get("callerid", "")
-        if request.steps == 0:
-            raise rospy.ServiceException(f"{STEP_SERVICE}: steps must be >= 1 (got 0)")
+        if not 1 <= request.steps <= StepRequest.MAX_STEPS:
+            raise rospy.ServiceException(f"{STEP_SERVICE}: steps must be between 1 and {StepRequest.MAX_STEPS} "
+                                         f"(got {request.steps}); call it again for more")
         if len(request.command_topics) != len(request.command_counts):
             raise rospy.ServiceException(f"{STEP_SERVICE}: command_topics and command_counts differ in length")
         unknown = [t for t in request.command_topics if t not in self._command_topics]
@@ -251,37 +312,166 @@ class SimNode:
                 raise rospy.ServiceException(
                     f"{STEP_SERVICE}: commands from {caller} did not arrive within {self.command_timeout} s on "
                     f"{'; '.join(missing)}; check that the publisher is connected to the sim node")
-            self.world.step(request.steps)
+            self._step_world(request.steps)
             self._publish_all()
             return StepResponse(stamp=self._stamp())
+
+    # -- Gazebo's physics, world and model services ---------------------------------------------
+    def _handle_get_physics(self, _request):
+        with self._exclusive():
+            world = self.world
+            return GetPhysicsPropertiesResponse(
+                time_step=world.time_step, pause=self._paused, max_update_rate=self.real_time_factor / world.time_step,
+                gravity=Vector3(*world.gravity), ode_config=messages.ode_physics_msg(self._ode), success=True,
+                status_message="GetPhysicsProperties: got properties")
+
+    def _handle_set_physics(self, request):
+        gravity = request.gravity
+        wanted = PhysicsProperties(request.time_step, request.max_update_rate, (gravity.x, gravity.y, gravity.z),
+                                   messages.ode_config(request.ode_config))
+        problem = physics_properties.check(wanted)
+        if problem:
+            message = f"SetPhysicsProperties refused, nothing changed: {problem}"
+            return SetPhysicsPropertiesResponse(success=False, status_message=message)
+        with self._exclusive():
+            world = self.world
+            if wanted.time_step != world.time_step:
+                world.set_time_step(wanted.time_step)
+                self._make_schedules()
+            world.set_gravity(wanted.gravity)
+            world.set_solver(physics_properties.solver_settings(wanted.ode))
+            self._ode = wanted.ode
+            self.real_time_factor = physics_properties.real_time_factor(wanted.max_update_rate, wanted.time_step)
+            self._pace_origin = None
+        not_honoured = physics_properties.not_honoured(wanted.ode)
+        new = [reason for name, reason in not_honoured.items() if name not in self._said_not_honoured]
+        if new:
+            self._said_not_honoured.update(not_honoured)
+            rospy.logwarn("pybullet_sim: /gazebo/set_physics_properties: PyBullet cannot honour ode_config %s; "
+                          "the rest is applied (said once per setting)", "; ".join(new))
+        status = "physics engine updated"
+        if not_honoured:
+            status += f"; PyBullet cannot honour ode_config {', '.join(not_honoured)} (kept, without effect)"
+        return SetPhysicsPropertiesResponse(success=True, status_message=status)
+
+    def _handle_get_world(self, _request):
+        with self._exclusive():
+            return GetWorldPropertiesResponse(sim_time=self.world.time, model_names=[self.world.robot_name],
+                                              rendering_enabled=self._gui, success=True,
+                                              status_message="GetWorldProperties: got properties")
+
+    def _frame(self, name: str):
+        """The world-frame state of a Gazebo reference frame name, None for the world itself (ValueError if unknown)."""
+        return None if name in WORLD_FRAMES else self.world.entity_state(name)
+
+    def _handle_get_model_state(self, request):
+        response = GetModelStateResponse()
+        if request.model_name != self.world.robot_name:
+            response.status_message = (f"GetModelState: model [{request.model_name}] does not exist (models: "
+                                       f"{self.world.robot_name})")
+            return response
+        with self._exclusive():
+            try:
+                frame = self._frame(request.relative_entity_name)
+            except ValueError as error:
+                response.status_message = f"GetModelState: relative_entity_name not found: {error}"
+                return response
+            state = self.world.model_state()
+            response.header.stamp = self._stamp()  # rospy numbers header.seq itself
+        response.header.frame_id = request.relative_entity_name
+        state = state if frame is None else relative_state(state, frame)
+        response.pose, response.twist = messages.pose_twist_msgs(state)
+        response.success, response.status_message = True, "GetModelState: got properties"
+        return response
+
+    def _handle_set_model_state(self, request):
+        wanted = request.model_state
+        if wanted.model_name != self.world.robot_name:
+            message = f"SetModelState: model [{wanted.model_name}] does not exist (models: {self.world.robot_name})"
+            return SetModelStateResponse(success=False, status_message=message)
+        with self._exclusive():
+            try:
+                frame = self._frame(wanted.reference_frame)
+                state = messages.frame_state(wanted.pose, wanted.twist)
+                self.world.set_model_state(state if frame is None else absolute_state(state, frame))
+            except ValueError as error:
+                return SetModelStateResponse(success=False,
+                                             status_message=f"SetModelState refused, nothing changed: {error}")
+        return SetModelStateResponse(success=True, status_message="SetModelState: set model state done")
+
+    def _handle_get_link_state(self, request):
+        with self._exclusive():
+            try:
+                state = self.world.link_state(self.world.link_name(request.link_name))
+                frame = self._frame(request.reference_frame)
+            except ValueError as error:
+                return GetLinkStateResponse(success=False, status_message=f"GetLinkState: {error}")
+        pose, twist = messages.pose_twist_msgs(state if frame is None else relative_state(state, frame))
+        return GetLinkStateResponse(link_state=LinkState(link_name=request.link_name, pose=pose, twist=twist,
+                                                         reference_frame=request.reference_frame),
+                                    success=True, status_message="GetLinkState: got state")
+
+    # -- ros_control's controller manager -------------------------------------------------------
+    def _answer(self, service: str, result) -> bool:
+        """Log a controller manager result as ros_control does (errors as errors), return its ok."""
+        if not result.ok:
+            rospy.logerr("pybullet_sim: %s/controller_manager/%s: %s", self.config.robot_namespace, service,
+                         result.message)
+        elif result.message:
+            rospy.logwarn("pybullet_sim: %s/controller_manager/%s: %s", self.config.robot_namespace, service,
+                          result.message)
+        return result.ok
+
+    def _handle_switch_controller(self, request):
+        with self._exclusive():
+            result = self.controllers.switch(request.start_controllers, request.stop_controllers, request.strictness,
+                                             request.start_asap)
+        return SwitchControllerResponse(ok=self._answer("switch_controller", result))
+
+    def _handle_list_controllers(self, _request):
+        with self._exclusive():
+            return ListControllersResponse(controller=[messages.controller_state_msg(info)
+                                                       for info in self.controllers.list()])
+
+    def _handle_load_controller(self, request):
+        with self._exclusive():
+            result = self.controllers.load(request.name)
+        return LoadControllerResponse(ok=self._answer("load_controller", result))
+
+    def _handle_unload_controller(self, request):
+        with self._exclusive():
+            result = self.controllers.unload(request.name)
+        return UnloadControllerResponse(ok=self._answer("unload_controller", result))
 
     # -- main loop ------------------------------------------------------------------------------
     def spin(self):
         """Advance physics while running, paced to real_time_factor; idle while paused."""
-        origin = None  # (wall, sim) at which pacing restarted
         while not rospy.is_shutdown():
             if self._waiters:
                 time.sleep(0.0002)
                 continue
             with self._lock:
                 if self._paused:
-                    origin = None
+                    self._pace_origin = None
                     self._run_state.wait(0.5)  # bounded so that shutdown is noticed
                     continue
-                if origin is None:
-                    origin = (time.monotonic(), self.world.time)
+                if self._pace_origin is None:
+                    self._pace_origin = (time.monotonic(), self.world.time)
+                origin, real_time_factor = self._pace_origin, self.real_time_factor
                 self.world.step(1)
                 self._publish_due()
                 sim_elapsed = self.world.time - origin[1]
-            if self.real_time_factor > 0.0:
-                lag = origin[0] + sim_elapsed / self.real_time_factor - time.monotonic()
+            if real_time_factor > 0.0:
+                lag = origin[0] + sim_elapsed / real_time_factor - time.monotonic()
                 if lag > 0.0:
                     time.sleep(lag)
                 elif lag < -0.1:
-                    origin = None  # cannot keep up: re-anchor instead of bursting to catch up
+                    with self._lock:  # cannot keep up: re-anchor instead of bursting to catch up
+                        self._pace_origin = None
 
     def close(self):
-        self.world.close()
+        with self._lock:  # a lockstep call may be between two batches of steps
+            self.world.close()
 
 
 def main(argv: List[str] = None) -> int:

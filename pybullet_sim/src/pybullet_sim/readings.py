@@ -70,3 +70,14 @@ class ContactReading:
     contacts: Tuple[ContactPoint, ...] = field(default_factory=tuple)
     total_force: Vector3 = (0.0, 0.0, 0.0)
     total_torque: Vector3 = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class FrameState:
+    """Pose and twist of a link's URDF frame in the world frame, as Gazebo's get_model_state and
+    get_link_state report them: the linear velocity is that of the frame's origin."""
+
+    position: Vector3
+    orientation: Quaternion
+    linear_velocity: Vector3
+    angular_velocity: Vector3

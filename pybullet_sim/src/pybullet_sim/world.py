@@ -6,13 +6,20 @@ it in-process (the "direct" backend) with the same results.
 
 Semantics kept from Gazebo + ros_control:
 - effort_controllers/JointVelocityController and JointPositionController are effort PIDs evaluated
-  every physics step; the effort is clamped to the URDF effort limit, as gazebo_ros_control does.
+  every physics step. Commands are clamped to the URDF limits (a velocity command to the velocity
+  limit, a position command to the position limits) and the effort to the effort limit, as ros_control's
+  joint limits interface does.
+- Controllers can be stopped and started (ros_control's switch_controller): a stopped controller applies
+  no effort and ignores commands; starting one restarts it (a position controller holds the current
+  position, a velocity controller stops). Resets restart the running ones and leave stopped ones stopped.
 - p3d odometry adds seeded Gaussian noise to position, orientation (as roll/pitch/yaw), and both
   velocities; pose and twist are in the world frame.
 - The IMU reports world orientation, body-frame angular velocity and body-frame proper acceleration.
 - The contact sensor reports the touching pairs of one link; no contacts means an empty list.
 - reset_world restores poses, velocities and controllers; reset_simulation also sets time back to 0
-  and restarts the noise generator from the seed.
+  and restarts the noise generator from the seed. Gravity, the time step and the solver settings
+  (Gazebo's physics properties) are kept across both, as in Gazebo.
+- Model and link states are the pose and twist of URDF link frames in the world frame.
 """
 from __future__ import annotations
 
@@ -21,16 +28,52 @@ import os
 import tempfile
 import xml.etree.ElementTree as ElementTree
 from dataclasses import dataclass
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Dict, List, Sequence, Tuple
 
 import numpy as np
 import pybullet as p
 
 from .config import ConfigError, JointControllerConfig, RobotConfig, SensorConfig
-from .readings import (ContactPoint, ContactReading, ImuReading, JointStateReading, OdometryReading)
+from .readings import ContactPoint, ContactReading, FrameState, ImuReading, JointStateReading, OdometryReading
 
-GRAVITY = (0.0, 0.0, -9.81)
+DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 GROUND_COLLISION_NAME = "ground_plane::link::collision"
+MIN_TIME_STEP = 1e-6  # s; sim time counts whole nanoseconds
+
+# Why the moving cube was thrown kilometres from a wheel speed of about 400 rad/s (issue 14), and what
+# keeps it physical up to the URDF's 1000 rad/s:
+# Bullet's Featherstone multibody adds the velocity-product terms (each link's gyroscopic torque w x Iw
+# and the Coriolis terms) explicitly, once per step: a body spinning at w turns w * h rad in a step h,
+# and the error grows with w^2 * h. Measured on the cube at h = 1 ms (World of commit a103b49, wheel
+# commanded at one speed for 5 s, mechanical energy against the motor's work): at 100 and 300 rad/s the
+# energy never exceeds the work; at 600 rad/s it exceeds it by 3.9e4 J (work 276 J) and the cube ends
+# 837 m away, at 1000 rad/s by 2.8e5 J and 2212 m. Floating without gravity or contact, where the centre
+# of mass must not move, it drifts 0.19 m in 2 s at 600 rad/s and 168 m at 1000 rad/s. Not the cause:
+# contact stiffness and damping (PyBullet's default contact: the same figures), solver iterations (50 or
+# 200: the same), the wheel's maxJointVelocity (2000 instead of 1000: still thrown). What decides is
+# w^2 * h: no energy gained up to 90 rad^2/s (300 rad/s at 1 ms, 600 at 1/4 ms, 1000 at 1/16 ms), energy
+# gained from 125 rad^2/s up (400 rad/s at 1 ms, 1000 at 1/8 ms). So a step whose fastest link spins
+# faster than SPIN_STEP_LIMIT allows is split into 2, 4, ... equal PyBullet substeps, efforts held (as
+# ros_control holds a command for a control period). At ordinary speeds (the cube's training commands
+# reach 100 rad/s: 10 rad^2/s) a step stays one PyBullet step and trajectories are unchanged; at
+# 1000 rad/s it takes 32 substeps, the energy stays below the motor's work for 10 s and the floating
+# cube's centre of mass moves less than 1 mm.
+# Gazebo is exposed to the same error at 1 ms: its ODE (gazebo-classic deps/opende/src/quickstep.cpp,
+# dxQuickStepper) also adds every body's gyroscopic torque w x Iw explicitly (dxBodyGyroscopic is set on
+# every body). Gazebo drone models (RotorS) spin their rotor joints 10 times slower than the real rotors
+# and warn of aliasing when a rotor turns too far in one step.
+SPIN_STEP_LIMIT = 40.0  # rad^2/s: the largest w^2 * h of one PyBullet step, half of the measured safe bound
+MAX_SUBSTEPS = 64
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """The settings of PyBullet's constraint solver that Gazebo's ODE settings map onto (PyBullet's defaults)."""
+
+    iterations: int = 50  # numSolverIterations (ODE sor_pgs_iters)
+    residual_threshold: float = 1e-7  # solverResidualThreshold: stop iterating below it (ODE sor_pgs_rms_error_tol)
+    erp: float = 0.2  # error reduction of joint limits and motors (ODE erp; contacts use the URDF's stiffness)
+    cfm: float = 0.0  # globalCFM, constraint force mixing of every constraint (ODE cfm)
 
 
 class UrdfError(ValueError):
@@ -70,14 +113,62 @@ def _cross(a: Sequence[float], b: Sequence[float]) -> Tuple[float, float, float]
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
+def _quaternion_multiply(a: Sequence[float], b: Sequence[float]) -> Tuple[float, float, float, float]:
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
+
+
+def _rotate(quaternion: Sequence[float], vector: Sequence[float]) -> Tuple[float, float, float]:
+    """A vector turned by a unit quaternion (x, y, z, w), in double precision (PyBullet's transforms are float)."""
+    axis, w = quaternion[:3], quaternion[3]
+    t = tuple(2.0 * c for c in _cross(axis, vector))
+    turned = _cross(axis, t)
+    return (vector[0] + w * t[0] + turned[0], vector[1] + w * t[1] + turned[1], vector[2] + w * t[2] + turned[2])
+
+
+def relative_state(state: FrameState, frame: FrameState) -> FrameState:
+    """A world-frame state expressed in another frame, as gazebo_ros's get_model_state and get_link_state do:
+    the pose relative to the frame, the velocity differences turned into the frame's axes."""
+    x, y, z, w = frame.orientation
+    inverse = (-x, -y, -z, w)
+    position = _rotate(inverse, [a - b for a, b in zip(state.position, frame.position, strict=True)])
+    linear = _rotate(inverse, [a - b for a, b in zip(state.linear_velocity, frame.linear_velocity, strict=True)])
+    angular = _rotate(inverse, [a - b for a, b in zip(state.angular_velocity, frame.angular_velocity, strict=True)])
+    return FrameState(position, _quaternion_multiply(inverse, state.orientation), linear, angular)
+
+
+def absolute_state(state: FrameState, frame: FrameState) -> FrameState:
+    """A state given in another frame, in the world frame, as gazebo_ros's set_model_state takes it: the pose
+    composed with the frame's, the velocities turned into world axes (the frame's own velocity is not added)."""
+    turned = [_rotate(frame.orientation, v) for v in (state.position, state.linear_velocity, state.angular_velocity)]
+    position = tuple(a + b for a, b in zip(turned[0], frame.position, strict=True))
+    return FrameState(position, _quaternion_multiply(frame.orientation, _normalized(state.orientation)),
+                      turned[1], turned[2])
+
+
+def _normalized(quaternion: Sequence[float]) -> Tuple[float, float, float, float]:
+    """A unit quaternion; all zeros (a default geometry_msgs/Pose) means no rotation, as in Gazebo."""
+    norm = math.sqrt(sum(q * q for q in quaternion))
+    return (0.0, 0.0, 0.0, 1.0) if norm < 1e-12 else tuple(q / norm for q in quaternion)
+
+
+def _check_time_step(time_step: float, error: type) -> None:
+    if not (isinstance(time_step, (int, float)) and math.isfinite(time_step) and time_step >= MIN_TIME_STEP):
+        raise error(f"time_step must be a finite number of seconds >= {MIN_TIME_STEP:g}, got {time_step!r}")
+
+
 class _EffortPid:
     """One ros_control effort PID (control_toolbox::Pid) on one joint."""
 
-    def __init__(self, config: JointControllerConfig, joint_index: int, effort_limit: float,
+    def __init__(self, config: JointControllerConfig, joint_index: int, effort_limit: float, velocity_limit: float,
                  lower: float, upper: float, continuous: bool):
         self.config = config
         self.joint_index = joint_index
         self.effort_limit = effort_limit
+        self.velocity_limit = velocity_limit  # 0 when the URDF gives none
+        self.running = True
         self.lower, self.upper = lower, upper
         self.has_limits = not continuous and lower < upper
         self.continuous = continuous
@@ -102,7 +193,9 @@ class _EffortPid:
                 error = math.remainder(error, 2.0 * math.pi)
             error_dot = -velocity
         else:
-            error = self.command - velocity
+            limit = self.velocity_limit
+            target = min(max(self.command, -limit), limit) if limit > 0.0 else self.command
+            error = target - velocity
             error_dot = (error - self._previous_error) / dt
             self._previous_error = error
         if self.i_clamp > 0.0:
@@ -117,8 +210,7 @@ class World:
 
     def __init__(self, urdf_text: str, config: RobotConfig, time_step: float = 0.001, seed: int = 0,
                  gui: bool = False, urdf_source: str = "robot_description"):
-        if not (time_step > 0.0 and math.isfinite(time_step)):
-            raise ConfigError(f"time_step must be a positive number of seconds, got {time_step!r}")
+        _check_time_step(time_step, ConfigError)
         self.robot_name, urdf_joints = parse_urdf_joints(urdf_text, urdf_source)
         for controller in config.controllers:
             if controller.joint not in urdf_joints:
@@ -127,7 +219,12 @@ class World:
         self.config = config
         self.time_step = time_step
         self.seed = seed
-        self.step_count = 0
+        self.step_count = 0  # physics steps since the start or the last reset_simulation
+        self._time_ns = 0
+        self._step_ns = round(time_step * 1e9)
+        self._substeps = 1
+        self._gravity = DEFAULT_GRAVITY
+        self._solver = SolverSettings()
         self._rng = np.random.default_rng(seed)
         self._cid = p.connect(p.GUI if gui else p.DIRECT)
         if self._cid < 0:
@@ -142,7 +239,7 @@ class World:
     def _build(self, urdf_text: str, urdf_joints: Dict[str, UrdfJoint], urdf_source: str) -> None:
         cid = self._cid
         p.setPhysicsEngineParameter(fixedTimeStep=self.time_step, deterministicOverlappingPairs=1, physicsClientId=cid)
-        p.setGravity(*GRAVITY, physicsClientId=cid)
+        p.setGravity(*self._gravity, physicsClientId=cid)
         plane_shape = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid)
         self._plane = p.createMultiBody(0, plane_shape, physicsClientId=cid)
         p.changeDynamics(self._plane, -1, lateralFriction=1.0, physicsClientId=cid)
@@ -159,23 +256,23 @@ class World:
             os.unlink(handle.name)
 
         self._link_index = {p.getBodyInfo(self._body, physicsClientId=cid)[0].decode(): -1}
-        movable: List[int] = []
-        joint_index: Dict[str, int] = {}
         info = {}
         for index in range(p.getNumJoints(self._body, physicsClientId=cid)):
             ji = p.getJointInfo(self._body, index, physicsClientId=cid)
-            name, jtype = ji[1].decode(), ji[2]
             self._link_index[ji[12].decode()] = index
-            info[name] = ji
-            joint_index[name] = index
+            info[ji[1].decode()] = ji
+        # Bullet clamps every velocity coordinate of a multibody, the base's included, to one maxJointVelocity,
+        # whichever link it is set on. It gets one value, at or above every URDF velocity limit, so that it
+        # only catches runaway numbers: the limits themselves act through the controllers, as in ros_control.
+        max_velocity = max([1000.0, *(ji[11] for ji in info.values())])
+        for index in (-1, *range(len(info))):
             # Gazebo applies no velocity damping; PyBullet's defaults would brake a spinning wheel.
-            p.changeDynamics(self._body, index, linearDamping=0.0, angularDamping=0.0,
-                             maxJointVelocity=max(ji[11], 1.0) if ji[11] > 0 else 1000.0, physicsClientId=cid)
-            if jtype in (p.JOINT_REVOLUTE, p.JOINT_PRISMATIC):
-                movable.append(index)
-        p.changeDynamics(self._body, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=cid)
-        self._movable = movable
-        self.joint_names = tuple(p.getJointInfo(self._body, i, physicsClientId=cid)[1].decode() for i in movable)
+            p.changeDynamics(self._body, index, linearDamping=0.0, angularDamping=0.0, maxJointVelocity=max_velocity,
+                             physicsClientId=cid)
+        movable_info = [ji for ji in info.values() if ji[2] in (p.JOINT_REVOLUTE, p.JOINT_PRISMATIC)]
+        self._movable = movable = [ji[0] for ji in movable_info]
+        self._revolute_slots = [slot for slot, ji in enumerate(movable_info) if ji[2] == p.JOINT_REVOLUTE]
+        self.joint_names = tuple(ji[1].decode() for ji in movable_info)
         # Effort control needs PyBullet's default velocity motors switched off.
         p.setJointMotorControlArray(self._body, movable, p.VELOCITY_CONTROL, forces=[0.0] * len(movable),
                                     physicsClientId=cid)
@@ -186,10 +283,12 @@ class World:
             if ji[2] not in (p.JOINT_REVOLUTE, p.JOINT_PRISMATIC):
                 raise ConfigError(f"controller {controller.name!r} names joint {controller.joint!r}, which is "
                                   f"{urdf_joints[controller.joint].type}, not movable")
-            self._controllers.append(_EffortPid(controller, ji[0], effort_limit=ji[10], lower=ji[8], upper=ji[9],
+            self._controllers.append(_EffortPid(controller, ji[0], effort_limit=ji[10], velocity_limit=ji[11],
+                                                lower=ji[8], upper=ji[9],
                                                 continuous=urdf_joints[controller.joint].type == "continuous"))
         self._controller_by_name = {c.config.name: c for c in self._controllers}
         self._controlled_indices = [c.joint_index for c in self._controllers]
+        self._controller_slots = [movable.index(i) for i in self._controlled_indices]
         # joint_states' effort column: each movable joint's controller output of the last step, or 0
         self._effort_slots = [self._controlled_indices.index(i) if i in self._controlled_indices else None
                               for i in movable]
@@ -207,13 +306,22 @@ class World:
     @property
     def time(self) -> float:
         """Simulated seconds since the start or the last reset_simulation."""
-        return self.step_count * self.time_step
+        return self._time_ns / 1e9
+
+    @property
+    def time_ns(self) -> int:
+        """Simulated nanoseconds since the start or the last reset_simulation (each step adds the time step)."""
+        return self._time_ns
 
     def set_command(self, controller: str, value: float) -> bool:
-        """Set a controller's command (rad/s or rad). A NaN or infinite value is ignored: returns False."""
+        """Set a controller's command (rad/s or rad). A NaN or infinite value is ignored: returns False.
+
+        A stopped controller ignores commands (its start sets the command)."""
         if not math.isfinite(value):
             return False
-        self._controller_by_name[controller].command = float(value)
+        pid = self._controller_by_name[controller]
+        if pid.running:
+            pid.command = float(value)
         return True
 
     def command(self, controller: str) -> float:
@@ -222,19 +330,159 @@ class World:
     def step(self, count: int = 1) -> None:
         """Advance `count` physics steps, running every controller before each one."""
         cid, body, dt = self._cid, self._body, self.time_step
-        controllers, indices = self._controllers, self._controlled_indices
+        controllers, slots, indices = self._controllers, self._controller_slots, self._controlled_indices
         efforts = self._controller_efforts
         for _ in range(count):
-            if controllers:
-                states = p.getJointStates(body, indices, physicsClientId=cid)
-                efforts = [c.effort(s[0], s[1], dt) for c, s in zip(controllers, states)]
-                p.setJointMotorControlArray(body, indices, p.TORQUE_CONTROL, forces=efforts, physicsClientId=cid)
-            p.stepSimulation(physicsClientId=cid)
+            states = p.getJointStates(body, self._movable, physicsClientId=cid)
+            efforts = [c.effort(states[s][0], states[s][1], dt) if c.running else 0.0
+                       for c, s in zip(controllers, slots, strict=True)]
+            for _ in range(self._substeps_for(states)):
+                if controllers:  # PyBullet applies a joint torque for one stepSimulation only
+                    p.setJointMotorControlArray(body, indices, p.TORQUE_CONTROL, forces=efforts, physicsClientId=cid)
+                p.stepSimulation(physicsClientId=cid)
         self.step_count += count
+        self._time_ns += count * self._step_ns
         self._controller_efforts = efforts
+
+    @property
+    def substeps(self) -> int:
+        """How many PyBullet steps the last physics step took (1 unless a link spun fast; see SPIN_STEP_LIMIT)."""
+        return self._substeps
+
+    def _substeps_for(self, joint_states) -> int:
+        """How many PyBullet substeps the next step needs (see SPIN_STEP_LIMIT); sets PyBullet's step to match."""
+        spin = math.sqrt(sum(w * w for w in p.getBaseVelocity(self._body, physicsClientId=self._cid)[1]))
+        spin += sum(abs(joint_states[slot][1]) for slot in self._revolute_slots)  # bounds every link's |w|
+        load = spin * spin * self.time_step
+        substeps = 1
+        while load > SPIN_STEP_LIMIT * substeps and substeps < MAX_SUBSTEPS:
+            substeps *= 2
+        if substeps != self._substeps:
+            p.setPhysicsEngineParameter(fixedTimeStep=self.time_step / substeps, physicsClientId=self._cid)
+            self._substeps = substeps
+        return substeps
+
+    # -- controllers (ros_control's controller manager drives these) ----------------------------
+    @property
+    def controller_names(self) -> Tuple[str, ...]:
+        return tuple(c.config.name for c in self._controllers)
+
+    def controller_running(self, controller: str) -> bool:
+        return self._controller_by_name[controller].running
+
+    def start_controller(self, controller: str) -> None:
+        """(Re)start a controller: a position controller holds the current position, a velocity one stops."""
+        pid = self._controller_by_name[controller]
+        pid.reset(p.getJointState(self._body, pid.joint_index, physicsClientId=self._cid)[0])
+        pid.running = True
+
+    def stop_controller(self, controller: str) -> None:
+        """Stop a controller: from the next step on it applies no effort and ignores commands."""
+        self._controller_by_name[controller].running = False
+
+    # -- physics properties (Gazebo's set_physics_properties) -----------------------------------
+    @property
+    def gravity(self) -> Tuple[float, float, float]:
+        return self._gravity
+
+    def set_gravity(self, gravity: Sequence[float]) -> None:
+        """Set the gravity vector (m/s^2, world frame) from the next step on; resets keep it."""
+        values = tuple(float(g) for g in gravity)
+        if len(values) != 3 or not all(math.isfinite(g) for g in values):
+            raise ValueError(f"gravity must be three finite numbers, got {tuple(gravity)!r}")
+        p.setGravity(*values, physicsClientId=self._cid)
+        self._gravity = values
+
+    def set_time_step(self, time_step: float) -> None:
+        """Change the physics step (s) from the next step on; sim time stays continuous."""
+        _check_time_step(time_step, ValueError)
+        self.time_step = float(time_step)
+        self._step_ns = round(self.time_step * 1e9)
+        self._substeps = 1
+        p.setPhysicsEngineParameter(fixedTimeStep=self.time_step, physicsClientId=self._cid)
+
+    @property
+    def solver(self) -> SolverSettings:
+        return self._solver
+
+    def set_solver(self, solver: SolverSettings) -> None:
+        """Apply constraint solver settings (see SolverSettings); resets keep them."""
+        if not (isinstance(solver.iterations, int) and solver.iterations >= 1):
+            raise ValueError(f"solver iterations must be an integer >= 1, got {solver.iterations!r}")
+        for name in ("residual_threshold", "erp", "cfm"):
+            value = getattr(solver, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"solver {name} must be a finite number >= 0, got {value!r}")
+        if solver.erp > 1.0:
+            raise ValueError(f"solver erp must be at most 1, got {solver.erp!r}")
+        p.setPhysicsEngineParameter(numSolverIterations=solver.iterations,
+                                    solverResidualThreshold=solver.residual_threshold, erp=solver.erp,
+                                    globalCFM=solver.cfm, physicsClientId=self._cid)
+        self._solver = solver
+
+    # -- model and link states (Gazebo's get/set_model_state, get_link_state) -------------------
+    @property
+    def link_names(self) -> Tuple[str, ...]:
+        """Every link of the robot, the base first."""
+        return tuple(self._link_index)
+
+    def model_state(self) -> FrameState:
+        """The robot's pose and twist: those of its base link's URDF frame."""
+        return self.link_state(self.link_names[0])
+
+    def link_name(self, name: str) -> str:
+        """The link a Gazebo name means: scoped ("moving_cube::cube_body") or not; ValueError naming it if none."""
+        model, separator, link = name.rpartition("::")
+        if (not separator or model == self.robot_name) and link in self._link_index:
+            return link
+        raise ValueError(f"{self.robot_name} has no link {name!r} (links: "
+                         f"{', '.join(f'{self.robot_name}::{link}' for link in self.link_names)})")
+
+    def entity_state(self, name: str) -> FrameState:
+        """The state of what a Gazebo entity name means here: the model (robot name) or one of its links."""
+        return self.model_state() if name == self.robot_name else self.link_state(self.link_name(name))
+
+    def link_state(self, link: str) -> FrameState:
+        """Pose and twist of a link's URDF frame in the world; ValueError naming the link if there is none."""
+        if link not in self._link_index:
+            raise ValueError(f"{self.robot_name} has no link {link!r} (links: {', '.join(self.link_names)})")
+        index, body, cid = self._link_index[link], self._body, self._cid
+        if index == -1:  # PyBullet's base pose is its centre of mass; the link frame may be offset from it
+            com, com_orientation = p.getBasePositionAndOrientation(body, physicsClientId=cid)
+            com_velocity, angular = p.getBaseVelocity(body, physicsClientId=cid)
+            inertial_position, inertial_orientation = p.getDynamicsInfo(body, -1, physicsClientId=cid)[3:5]
+            x, y, z, w = inertial_orientation
+            orientation = _quaternion_multiply(com_orientation, (-x, -y, -z, w))
+            position = tuple(c - o for c, o in zip(com, _rotate(orientation, inertial_position), strict=True))
+        else:
+            state = p.getLinkState(body, index, computeLinkVelocity=1, computeForwardKinematics=1, physicsClientId=cid)
+            com, position, orientation, com_velocity, angular = state[0], state[4], state[5], state[6], state[7]
+        offset = tuple(a - b for a, b in zip(position, com, strict=True))
+        linear = tuple(v + w for v, w in zip(com_velocity, _cross(angular, offset), strict=True))
+        return FrameState(tuple(position), tuple(orientation), linear, tuple(angular))
+
+    def set_model_state(self, state: FrameState) -> None:
+        """Move the robot's base frame to a pose with a twist (world frame); the joints keep their state.
+
+        As Gazebo does, the orientation is normalised and an all-zero quaternion means no rotation.
+        ValueError if any number is not finite."""
+        numbers = (*state.position, *state.orientation, *state.linear_velocity, *state.angular_velocity)
+        if len(numbers) != 13 or not all(math.isfinite(v) for v in numbers):
+            raise ValueError(f"the pose and twist must be finite numbers, got {state!r}")
+        orientation = _normalized(state.orientation)
+        inertial_position, inertial_orientation = p.getDynamicsInfo(self._body, -1, physicsClientId=self._cid)[3:5]
+        com = tuple(a + b for a, b in zip(state.position, _rotate(orientation, inertial_position), strict=True))
+        com_orientation = _quaternion_multiply(orientation, inertial_orientation)
+        offset = tuple(a - b for a, b in zip(com, state.position, strict=True))
+        com_velocity = tuple(v + w for v, w in zip(state.linear_velocity, _cross(state.angular_velocity, offset), strict=True))
+        p.resetBasePositionAndOrientation(self._body, com, com_orientation, physicsClientId=self._cid)
+        p.resetBaseVelocity(self._body, com_velocity, state.angular_velocity, physicsClientId=self._cid)
+        p.performCollisionDetection(physicsClientId=self._cid)
+        self._imu_previous.clear()
 
     # -- resets ---------------------------------------------------------------------------------
     def _reset_controllers(self) -> None:
+        """Restart every controller as gazebo_ros_control does on a reset; stopped ones stay stopped."""
         states = p.getJointStates(self._body, self._controlled_indices, physicsClientId=self._cid) if self._controllers else []
         for controller, state in zip(self._controllers, states):
             controller.reset(state[0])
@@ -252,6 +500,7 @@ class World:
         """reset_world, plus time back to 0 and the noise generator restarted from the seed."""
         self.reset_world()
         self.step_count = 0
+        self._time_ns = 0
         self._rng = np.random.default_rng(self.seed)
 
     def close(self) -> None:
@@ -302,7 +551,7 @@ class World:
         else:
             acceleration = [0.0, 0.0, 0.0]
         self._imu_previous[sensor.name] = (now, tuple(linear))
-        proper = [a - g for a, g in zip(acceleration, GRAVITY)]
+        proper = [a - g for a, g in zip(acceleration, self._gravity, strict=True)]
         angular_body = _transpose_rotate(orientation, angular)
         proper_body = _transpose_rotate(orientation, proper)
         sigma = sensor.gaussian_noise

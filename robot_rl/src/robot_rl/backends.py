@@ -145,7 +145,7 @@ class RosBackend(Backend):
 
         from pybullet_sim import messages
         from pybullet_sim.client import CommandPublisher, SensorSubscriber, SimConnection, SimConnectionError
-        from pybullet_sim.msg import ContactsState
+        from gazebo_msgs.msg import ContactsState
 
         init_ros_node("robot_rl_env")
         hint = f"is the sim node running? (e.g. {robot.sim_launch})"
