@@ -31,7 +31,7 @@ def manager(cube, cube_params):
 
 
 def states(manager):
-    return {info.name: info.state for info in manager.list()}
+    return {info.name: info.state for info in manager.infos()}
 
 
 def spin_wheel(world, speed=40.0):
@@ -41,7 +41,7 @@ def spin_wheel(world, speed=40.0):
 
 
 def test_everything_is_loaded_and_running_at_start(manager):
-    assert manager.list() == [
+    assert manager.infos() == [
         ControllerInfo(JSC, "joint_state_controller/JointStateController", "running", JOINT_STATE_INTERFACE, ()),
         ControllerInfo(WHEEL, "effort_controllers/JointVelocityController", "running", EFFORT_INTERFACE,
                        ("inertia_wheel_roll_joint",)),

@@ -38,7 +38,7 @@ def test_valid_values_become_typed_attributes():
     assert p.init_cube_pose == Point(x=0.0, y=1.0, z=2.5) and type(p.init_cube_pose.x) is float
     assert type(p.nepisodes) is int
     with pytest.raises(FrozenInstanceError):
-        p.alpha = 0.2  # type: ignore[misc]
+        p.alpha = 0.2
 
 
 def test_round_trip_and_unknown_keys_ignored():

@@ -22,23 +22,30 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from hopper_training.monoped_env import STAY_UP
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
-from robot_rl.task import make_env
+from robot_rl.task import TaskSpec, make_env
 from workspace_tools.processes import Processes, RosMaster, launch_args
 
-# The task each robot is measured on, env steps per repetition, Gazebo-style steps per real-time factor.
-ROBOTS = {
-    "cube": {"task": ONE_DISK_WALK, "steps": 3000, "gazebo_steps": {1.0: 20, 0.0: 50}},
-    "hopper": {"task": STAY_UP, "steps": 10000, "gazebo_steps": {1.0: 100, 0.0: 200}},
-}
+
+@dataclass(frozen=True)
+class BenchRobot:
+    task: TaskSpec[Any]               # the task the robot is measured on
+    steps: int                        # env steps per repetition
+    gazebo_steps: dict[float, int]    # Gazebo-style steps per real-time factor
+
+
+ROBOTS = {"cube": BenchRobot(ONE_DISK_WALK, 3000, {1.0: 20, 0.0: 50}),
+          "hopper": BenchRobot(STAY_UP, 10000, {1.0: 100, 0.0: 200})}
 
 
 # -- workers: each runs in its own process and prints one JSON line -------------------------------
 def _make_env(robot: str, backend: str):
-    return make_env(ROBOTS[robot]["task"], backend=backend)
+    return make_env(ROBOTS[robot].task, backend=backend)
 
 
 def worker_lockstep(robot: str, backend: str, steps: int) -> dict:
@@ -87,8 +94,10 @@ def worker_gazebo_style(robot: str, steps: int) -> dict:
             target = clock["now"] + running_step
         sim.unpause()
         env._apply_action(int(rng.integers(env.action_space.n)), env.readings)
+        def reached(target: rospy.Time = target) -> bool:
+            return clock["now"] >= target
         with changed:
-            if not changed.wait_for(lambda target=target: clock["now"] >= target, 10.0):
+            if not changed.wait_for(reached, 10.0):
                 raise RuntimeError("/clock did not advance by running_step within 10 s")
         sim.pause()
         readings = backend.latest()
@@ -110,7 +119,7 @@ def _run_worker(processes: Processes, args: list, timeout: float) -> dict:
 def _with_sim(log_dir: Path, robot: str, real_time_factor: float, worker_args: list) -> dict:
     master = RosMaster(log_dir)
     try:
-        master.start([*ROBOTS[robot]["task"].robot.sim_launch.split(), *launch_args(
+        master.start([*ROBOTS[robot].task.robot.sim_launch.split(), *launch_args(
             paused="true", real_time_factor=real_time_factor, robot_state_publisher="false")],
             stdout=(log_dir / "sim.log").open("w"), stderr=subprocess.STDOUT)
         return _run_worker(master, worker_args, timeout=600)
@@ -142,14 +151,15 @@ def _machine() -> str:
 
 
 def orchestrate(reps: int, output: Path) -> dict:
-    samples = {robot: {k: [] for k in ("ros", "direct", "ratio", "gazebo_1", "gazebo_0")} for robot in ROBOTS}
+    samples: dict[str, dict[str, list[float]]] = {
+        robot: {k: [] for k in ("ros", "direct", "ratio", "gazebo_1", "gazebo_0")} for robot in ROBOTS}
     cube_training = []
     running_steps = {}
-    with tempfile.TemporaryDirectory(prefix="bench-") as tmp:
-        tmp = Path(tmp)
+    with tempfile.TemporaryDirectory(prefix="bench-") as tmp_dir:
+        tmp = Path(tmp_dir)
         for rep in range(reps):
             for robot, spec in ROBOTS.items():
-                steps = str(spec["steps"])
+                steps = str(spec.steps)
                 ros = _with_sim(tmp / f"{rep}-{robot}-ros", robot, 0.0, ["lockstep", robot, "ros", steps])
                 direct = _run_worker(Processes(tmp / f"{rep}-{robot}-direct"), ["lockstep", robot, "direct", steps],
                                      timeout=600)
@@ -157,7 +167,7 @@ def orchestrate(reps: int, output: Path) -> dict:
                 samples[robot]["ros"].append(ros["steps_per_s"])
                 samples[robot]["direct"].append(direct["steps_per_s"])
                 samples[robot]["ratio"].append(ros["steps_per_s"] / direct["steps_per_s"])
-                for rtf, gazebo_steps in spec["gazebo_steps"].items():
+                for rtf, gazebo_steps in spec.gazebo_steps.items():
                     style = _with_sim(tmp / f"{rep}-{robot}-gazebo{rtf}", robot, rtf,
                                       ["gazebo", robot, str(gazebo_steps)])
                     samples[robot][f"gazebo_{int(rtf)}"].append(style["steps_per_s"])

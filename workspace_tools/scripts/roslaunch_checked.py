@@ -9,6 +9,7 @@ launch without roslaunch's red "REQUIRED process has died" banner, and Ctrl-C ex
 master if none is running, as roslaunch does.
 """
 import sys
+from typing import Any
 
 import roslaunch
 import roslaunch.core
@@ -24,7 +25,7 @@ class ExitCodes(roslaunch.pmon.ProcessListener):
 
     def __init__(self):
         self.ends_launch = set()
-        self.monitor = None
+        self.monitor: Any = None
         self.finished = None    # exit code of the first node of ends_launch to end
         self.failures = []      # non-zero exit codes of the other nodes
 

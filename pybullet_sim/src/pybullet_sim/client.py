@@ -10,7 +10,8 @@ import socket
 import threading
 import time
 import warnings
-from typing import Callable, Dict, Generic, Iterable, Optional, TypeVar
+from collections.abc import Callable, Iterable
+from typing import Any, Generic, TypeVar
 
 import rospy
 from std_msgs.msg import Float64
@@ -47,7 +48,7 @@ class CommandPublisher:
     rospy gives all publishers of one topic in a process one connection, and the sim counts what
     arrives per topic and node, so the count is kept per topic for the whole process."""
 
-    _sent: Dict[str, int] = {}
+    _sent: dict[str, int] = {}
     _sent_lock = threading.Lock()
 
     def __init__(self, topic: str, hint: str = HINT):
@@ -88,7 +89,7 @@ class SensorSubscriber(Generic[Reading]):
         self._to_reading = to_reading
         self._condition = threading.Condition()
         self._count = 0
-        self._latest_msg = None
+        self._latest_msg: Any = None
         self._subscriber = rospy.Subscriber(self.topic, msg_type, self._callback, tcp_nodelay=True)
         rospy.on_shutdown(self._wake)
 
@@ -118,11 +119,11 @@ class SensorSubscriber(Generic[Reading]):
         return self._count
 
     @property
-    def latest(self) -> Optional[Reading]:
+    def latest(self) -> Reading | None:
         msg = self._latest_msg
         return None if msg is None else self._to_reading(msg)
 
-    def wait_newer(self, count: int, timeout: float, stamp: Optional[rospy.Time] = None) -> Reading:
+    def wait_newer(self, count: int, timeout: float, stamp: rospy.Time | None = None) -> Reading:
         """Wait for a message after the `count`-th (and stamped `stamp` if given); return its reading."""
         def arrived():
             return self._count > count and (stamp is None or self._latest_msg.header.stamp == stamp)

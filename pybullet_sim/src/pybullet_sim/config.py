@@ -7,8 +7,9 @@ here is robot specific: robots differ only by URDF and this YAML.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Dict, Mapping, Optional, Tuple
+from typing import Any
 
 JOINT_STATE_CONTROLLER = "joint_state_controller/JointStateController"
 VELOCITY_CONTROLLER = "effort_controllers/JointVelocityController"
@@ -58,11 +59,11 @@ class SensorConfig:
 @dataclass(frozen=True)
 class RobotConfig:
     robot_namespace: str
-    spawn_xyz: Tuple[float, float, float]
-    spawn_rpy: Tuple[float, float, float]
+    spawn_xyz: tuple[float, ...]   # x, y, z
+    spawn_rpy: tuple[float, ...]   # roll, pitch, yaw
     joint_state_rate: float
-    controllers: Tuple[JointControllerConfig, ...]
-    sensors: Tuple[SensorConfig, ...]
+    controllers: tuple[JointControllerConfig, ...]
+    sensors: tuple[SensorConfig, ...]
     joint_state_controller: str = "joint_state_controller"  # the name of the JointStateController
 
     @property
@@ -73,8 +74,8 @@ class RobotConfig:
         return f"{self.robot_namespace}/{controller.name}/command"
 
 
-def _number(params: Mapping[str, Any], key: str, where: str, default: Optional[float] = None,
-            minimum: Optional[float] = None, exclusive_minimum: bool = False) -> float:
+def _number(params: Mapping[str, Any], key: str, where: str, default: float | None = None,
+            minimum: float | None = None, exclusive_minimum: bool = False) -> float:
     if key not in params:
         if default is None:
             raise ConfigError(f"missing parameter {where}/{key}")
@@ -88,7 +89,7 @@ def _number(params: Mapping[str, Any], key: str, where: str, default: Optional[f
     return float(value)
 
 
-def _text(params: Mapping[str, Any], key: str, where: str, default: Optional[str] = None) -> str:
+def _text(params: Mapping[str, Any], key: str, where: str, default: str | None = None) -> str:
     value = params.get(key, default)
     if value is None:
         raise ConfigError(f"missing parameter {where}/{key}")
@@ -97,7 +98,7 @@ def _text(params: Mapping[str, Any], key: str, where: str, default: Optional[str
     return value
 
 
-def _mapping(params: Mapping[str, Any], key: str, where: str) -> Dict[str, Any]:
+def _mapping(params: Mapping[str, Any], key: str, where: str) -> dict[str, Any]:
     value = params.get(key, {})
     if not isinstance(value, dict):
         raise ConfigError(f"parameter {where}/{key} must be a dictionary, got {value!r}")
@@ -136,8 +137,9 @@ def parse_robot_config(params: Mapping[str, Any], where: str = "~") -> RobotConf
         p_where = f"{c_where}/pid"
         gains = PidGains(p=_number(pid, "p", p_where), i=_number(pid, "i", p_where, 0.0),
                          d=_number(pid, "d", p_where, 0.0), i_clamp=_number(pid, "i_clamp", p_where, 0.0, minimum=0.0))
-        controllers.append(JointControllerConfig(name=name, type=ctype, joint=_text(entry, "joint", c_where), pid=gains))
-    if joint_state_rate is None:
+        joint = _text(entry, "joint", c_where)
+        controllers.append(JointControllerConfig(name=name, type=ctype, joint=joint, pid=gains))
+    if joint_state_rate is None or joint_state_controller is None:
         raise ConfigError(f"parameter {where}/controllers needs a {JOINT_STATE_CONTROLLER} with a publish_rate")
 
     sensors = []
@@ -147,7 +149,8 @@ def parse_robot_config(params: Mapping[str, Any], where: str = "~") -> RobotConf
             raise ConfigError(f"parameter {s_where} must be a dictionary")
         stype = _text(entry, "type", s_where)
         if stype not in SENSOR_TYPES:
-            raise ConfigError(f"parameter {s_where}/type: unsupported sensor type {stype!r} (supported: {', '.join(SENSOR_TYPES)})")
+            raise ConfigError(f"parameter {s_where}/type: unsupported sensor type {stype!r} "
+                              f"(supported: {', '.join(SENSOR_TYPES)})")
         topic = _text(entry, "topic", s_where)
         if not topic.startswith("/"):
             raise ConfigError(f"parameter {s_where}/topic must be absolute (start with '/'), got {topic!r}")

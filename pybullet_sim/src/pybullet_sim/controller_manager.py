@@ -66,7 +66,7 @@ class ControllerManager:
     def joint_states_running(self) -> bool:
         return self._states.get(self._joint_state_controller) == "running"
 
-    def list(self) -> list[ControllerInfo]:
+    def infos(self) -> list[ControllerInfo]:
         infos = []
         for name, state in self._states.items():
             controller_type, interface, joints = self._specs[name]

@@ -6,11 +6,12 @@ into the same readings, so task envs never see a message type.
 from __future__ import annotations
 
 import rospy
-from controller_manager_msgs.msg import ControllerState, HardwareInterfaceResources
-from gazebo_msgs.msg import ContactsState, ContactState, ODEPhysics
 from geometry_msgs.msg import Pose, TransformStamped, Twist, Vector3, Wrench
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, JointState
+
+from controller_manager_msgs.msg import ControllerState, HardwareInterfaceResources
+from gazebo_msgs.msg import ContactsState, ContactState, ODEPhysics
 
 from .controller_manager import ControllerInfo
 from .physics_properties import OdeConfig

@@ -15,7 +15,8 @@ see controller_manager). Bad requests get success false (ok false) and change no
 Private params: ~time_step (0.001 s), ~real_time_factor (1.0), ~paused (false), ~gui (false), ~seed (0),
 ~command_timeout (2.0 s: how long ~step waits for the commands its caller announced),
 ~pub_clock_frequency (100 Hz of wall time at most for /clock, gazebo_ros's default), plus the robot's
-controllers and sensors (see moving_cube_description/config/moving_cube_sim.yaml). The URDF comes from `robot_description`.
+controllers and sensors (see moving_cube_description/config/moving_cube_sim.yaml). The URDF comes from
+`robot_description`.
 """
 from __future__ import annotations
 
@@ -23,26 +24,43 @@ import math
 import threading
 import time
 from contextlib import contextmanager
-from typing import Dict, List, Tuple
 
 import rospy
 import tf2_ros
+from geometry_msgs.msg import Vector3
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Empty, EmptyResponse
 
-from controller_manager_msgs.srv import (ListControllers, ListControllersResponse, LoadController,
-                                         LoadControllerResponse, SwitchController, SwitchControllerResponse,
-                                         UnloadController, UnloadControllerResponse)
+from controller_manager_msgs.srv import (
+    ListControllers,
+    ListControllersResponse,
+    LoadController,
+    LoadControllerResponse,
+    SwitchController,
+    SwitchControllerResponse,
+    UnloadController,
+    UnloadControllerResponse,
+)
 from gazebo_msgs.msg import ContactsState, LinkState
-from gazebo_msgs.srv import (GetLinkState, GetLinkStateResponse, GetModelState, GetModelStateResponse,
-                             GetPhysicsProperties, GetPhysicsPropertiesResponse, GetWorldProperties,
-                             GetWorldPropertiesResponse, SetModelState, SetModelStateResponse, SetPhysicsProperties,
-                             SetPhysicsPropertiesResponse)
-from geometry_msgs.msg import Vector3
+from gazebo_msgs.srv import (
+    GetLinkState,
+    GetLinkStateResponse,
+    GetModelState,
+    GetModelStateResponse,
+    GetPhysicsProperties,
+    GetPhysicsPropertiesResponse,
+    GetWorldProperties,
+    GetWorldPropertiesResponse,
+    SetModelState,
+    SetModelStateResponse,
+    SetPhysicsProperties,
+    SetPhysicsPropertiesResponse,
+)
 from pybullet_sim.srv import Step, StepRequest, StepResponse
+
 from . import messages, physics_properties
 from .client import STEP_SERVICE, synchronous_publisher
 from .config import ConfigError, SensorConfig, parse_robot_config
@@ -122,7 +140,7 @@ class SimNode:
         self._commands_arrived = threading.Condition(self._lock)
         self._waiters = 0
         self._waiters_lock = threading.Lock()  # `+=` on an attribute is not atomic across threads
-        self._received: Dict[Tuple[str, str], int] = {}
+        self._received: dict[tuple[str, str], int] = {}
         self._last_bad_command_warning = -math.inf
 
         # Synchronous publishers: in lockstep each message is awaited at once (see synchronous_publisher).
@@ -431,7 +449,7 @@ class SimNode:
     def _handle_list_controllers(self, _request):
         with self._exclusive():
             return ListControllersResponse(controller=[messages.controller_state_msg(info)
-                                                       for info in self.controllers.list()])
+                                                       for info in self.controllers.infos()])
 
     def _handle_load_controller(self, request):
         with self._exclusive():
@@ -474,7 +492,7 @@ class SimNode:
             self.world.close()
 
 
-def main(argv: List[str] = None) -> int:
+def main(argv: list[str] | None = None) -> int:
     rospy.init_node("pybullet_sim", argv=argv)
     try:
         node = SimNode()

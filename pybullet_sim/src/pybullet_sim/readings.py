@@ -6,10 +6,9 @@ messages) and in-process (readings straight from a World).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Tuple
 
-Vector3 = Tuple[float, float, float]
-Quaternion = Tuple[float, float, float, float]  # x, y, z, w (ROS order)
+Vector3 = tuple[float, ...]      # x, y, z
+Quaternion = tuple[float, ...]   # x, y, z, w (ROS order)
 
 
 @dataclass(frozen=True)
@@ -17,10 +16,10 @@ class JointStateReading:
     """sensor_msgs/JointState: one entry per movable joint, in URDF order."""
 
     stamp: float
-    name: Tuple[str, ...]
-    position: Tuple[float, ...]
-    velocity: Tuple[float, ...]
-    effort: Tuple[float, ...]
+    name: tuple[str, ...]
+    position: tuple[float, ...]
+    velocity: tuple[float, ...]
+    effort: tuple[float, ...]
 
 
 @dataclass(frozen=True)
@@ -67,7 +66,7 @@ class ContactReading:
 
     stamp: float
     frame_id: str
-    contacts: Tuple[ContactPoint, ...] = field(default_factory=tuple)
+    contacts: tuple[ContactPoint, ...] = field(default_factory=tuple)
     total_force: Vector3 = (0.0, 0.0, 0.0)
     total_torque: Vector3 = (0.0, 0.0, 0.0)
 

@@ -27,8 +27,8 @@ import math
 import os
 import tempfile
 import xml.etree.ElementTree as ElementTree
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Dict, List, Sequence, Tuple
 
 import numpy as np
 import pybullet as p
@@ -86,7 +86,7 @@ class UrdfJoint:
     type: str
 
 
-def parse_urdf_joints(urdf_text: str, source: str) -> Tuple[str, Dict[str, UrdfJoint]]:
+def parse_urdf_joints(urdf_text: str, source: str) -> tuple[str, dict[str, UrdfJoint]]:
     """Return the robot name and its joints by name; raise UrdfError naming `source` if it is not a URDF."""
     if not urdf_text or not urdf_text.strip():
         raise UrdfError(f"{source} is empty")
@@ -98,29 +98,34 @@ def parse_urdf_joints(urdf_text: str, source: str) -> Tuple[str, Dict[str, UrdfJ
         raise UrdfError(f"{source} is not a URDF: the root element must be <robot name=...>, got <{root.tag}>")
     if root.find("link") is None:
         raise UrdfError(f"{source} is not a URDF: it has no <link>")
-    joints = {j.get("name"): UrdfJoint(j.get("name"), j.get("type")) for j in root.findall("joint")}
-    return root.get("name"), joints
+    joints = {}
+    for element in root.findall("joint"):
+        name, kind = element.get("name"), element.get("type")
+        if not name or not kind:
+            raise UrdfError(f"{source} is not a URDF: a <joint> has no name or no type")
+        joints[name] = UrdfJoint(name, kind)
+    return str(root.get("name")), joints
 
 
-def _transpose_rotate(quaternion: Sequence[float], vector: Sequence[float]) -> Tuple[float, float, float]:
+def _transpose_rotate(quaternion: Sequence[float], vector: Sequence[float]) -> tuple[float, float, float]:
     """Express a world-frame vector in the frame whose world orientation is `quaternion`."""
     m = p.getMatrixFromQuaternion(quaternion)
     x, y, z = vector
     return (m[0] * x + m[3] * y + m[6] * z, m[1] * x + m[4] * y + m[7] * z, m[2] * x + m[5] * y + m[8] * z)
 
 
-def _cross(a: Sequence[float], b: Sequence[float]) -> Tuple[float, float, float]:
+def _cross(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float]:
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-def _quaternion_multiply(a: Sequence[float], b: Sequence[float]) -> Tuple[float, float, float, float]:
+def _quaternion_multiply(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float, float]:
     ax, ay, az, aw = a
     bx, by, bz, bw = b
     return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
             aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
 
 
-def _rotate(quaternion: Sequence[float], vector: Sequence[float]) -> Tuple[float, float, float]:
+def _rotate(quaternion: Sequence[float], vector: Sequence[float]) -> tuple[float, float, float]:
     """A vector turned by a unit quaternion (x, y, z, w), in double precision (PyBullet's transforms are float)."""
     axis, w = quaternion[:3], quaternion[3]
     t = tuple(2.0 * c for c in _cross(axis, vector))
@@ -148,7 +153,7 @@ def absolute_state(state: FrameState, frame: FrameState) -> FrameState:
                       turned[1], turned[2])
 
 
-def _normalized(quaternion: Sequence[float]) -> Tuple[float, float, float, float]:
+def _normalized(quaternion: Sequence[float]) -> tuple[float, ...]:
     """A unit quaternion; all zeros (a default geometry_msgs/Pose) means no rotation, as in Gazebo."""
     norm = math.sqrt(sum(q * q for q in quaternion))
     return (0.0, 0.0, 0.0, 1.0) if norm < 1e-12 else tuple(q / norm for q in quaternion)
@@ -236,7 +241,7 @@ class World:
             raise
 
     # -- construction ---------------------------------------------------------------------------
-    def _build(self, urdf_text: str, urdf_joints: Dict[str, UrdfJoint], urdf_source: str) -> None:
+    def _build(self, urdf_text: str, urdf_joints: dict[str, UrdfJoint], urdf_source: str) -> None:
         cid = self._cid
         p.setPhysicsEngineParameter(fixedTimeStep=self.time_step, deterministicOverlappingPairs=1, physicsClientId=cid)
         p.setGravity(*self._gravity, physicsClientId=cid)
@@ -277,7 +282,7 @@ class World:
         p.setJointMotorControlArray(self._body, movable, p.VELOCITY_CONTROL, forces=[0.0] * len(movable),
                                     physicsClientId=cid)
 
-        self._controllers: List[_EffortPid] = []
+        self._controllers: list[_EffortPid] = []
         for controller in self.config.controllers:
             ji = info[controller.joint]
             if ji[2] not in (p.JOINT_REVOLUTE, p.JOINT_PRISMATIC):
@@ -298,7 +303,7 @@ class World:
             if sensor.link not in self._link_index:
                 raise ConfigError(f"sensor {sensor.name!r} names link {sensor.link!r}, which {urdf_source} does not "
                                   f"have (links: {', '.join(sorted(self._link_index))})")
-        self._imu_previous: Dict[str, Tuple[float, Tuple[float, float, float]]] = {}
+        self._imu_previous: dict[str, tuple[float, tuple[float, float, float]]] = {}
         self._saved_state = p.saveState(physicsClientId=cid)
         self._reset_controllers()
 
@@ -364,7 +369,7 @@ class World:
 
     # -- controllers (ros_control's controller manager drives these) ----------------------------
     @property
-    def controller_names(self) -> Tuple[str, ...]:
+    def controller_names(self) -> tuple[str, ...]:
         return tuple(c.config.name for c in self._controllers)
 
     def controller_running(self, controller: str) -> bool:
@@ -382,7 +387,7 @@ class World:
 
     # -- physics properties (Gazebo's set_physics_properties) -----------------------------------
     @property
-    def gravity(self) -> Tuple[float, float, float]:
+    def gravity(self) -> tuple[float, float, float]:
         return self._gravity
 
     def set_gravity(self, gravity: Sequence[float]) -> None:
@@ -422,7 +427,7 @@ class World:
 
     # -- model and link states (Gazebo's get/set_model_state, get_link_state) -------------------
     @property
-    def link_names(self) -> Tuple[str, ...]:
+    def link_names(self) -> tuple[str, ...]:
         """Every link of the robot, the base first."""
         return tuple(self._link_index)
 
@@ -474,7 +479,8 @@ class World:
         com = tuple(a + b for a, b in zip(state.position, _rotate(orientation, inertial_position), strict=True))
         com_orientation = _quaternion_multiply(orientation, inertial_orientation)
         offset = tuple(a - b for a, b in zip(com, state.position, strict=True))
-        com_velocity = tuple(v + w for v, w in zip(state.linear_velocity, _cross(state.angular_velocity, offset), strict=True))
+        spin = _cross(state.angular_velocity, offset)
+        com_velocity = tuple(v + w for v, w in zip(state.linear_velocity, spin, strict=True))
         p.resetBasePositionAndOrientation(self._body, com, com_orientation, physicsClientId=self._cid)
         p.resetBaseVelocity(self._body, com_velocity, state.angular_velocity, physicsClientId=self._cid)
         p.performCollisionDetection(physicsClientId=self._cid)
@@ -483,7 +489,8 @@ class World:
     # -- resets ---------------------------------------------------------------------------------
     def _reset_controllers(self) -> None:
         """Restart every controller as gazebo_ros_control does on a reset; stopped ones stay stopped."""
-        states = p.getJointStates(self._body, self._controlled_indices, physicsClientId=self._cid) if self._controllers else []
+        states = (p.getJointStates(self._body, self._controlled_indices, physicsClientId=self._cid)
+                  if self._controllers else [])
         for controller, state in zip(self._controllers, states):
             controller.reset(state[0])
         self._controller_efforts = [0.0] * len(self._controllers)
@@ -571,8 +578,8 @@ class World:
         in_link_frame = sensor.frame_id == sensor.link
         own_name = f"{self.robot_name}::{sensor.link}::{sensor.link}_collision"
         contacts = []
-        total_force = (0.0, 0.0, 0.0)
-        total_torque = (0.0, 0.0, 0.0)
+        total_force: tuple[float, ...] = (0.0, 0.0, 0.0)
+        total_torque: tuple[float, ...] = (0.0, 0.0, 0.0)
         for point in points:
             normal, normal_force = point[7], point[9]
             f1, d1, f2, d2 = point[10], point[11], point[12], point[13]
@@ -581,7 +588,8 @@ class World:
             torque = _cross(tuple(c - o for c, o in zip(position, origin)), force)
             total_force = tuple(t + f for t, f in zip(total_force, force))
             total_torque = tuple(t + q for t, q in zip(total_torque, torque))
-            other = GROUND_COLLISION_NAME if point[2] == self._plane else f"{self.robot_name}::link{point[4]}::collision"
+            other = (GROUND_COLLISION_NAME if point[2] == self._plane
+                     else f"{self.robot_name}::link{point[4]}::collision")
             if in_link_frame:
                 force, torque, normal = (_transpose_rotate(orientation, v) for v in (force, torque, normal))
             contacts.append(ContactPoint(collision1_name=own_name, collision2_name=other, force=force,

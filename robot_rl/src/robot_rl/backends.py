@@ -143,9 +143,9 @@ class RosBackend(Backend):
         from nav_msgs.msg import Odometry
         from sensor_msgs.msg import Imu, JointState
 
+        from gazebo_msgs.msg import ContactsState
         from pybullet_sim import messages
         from pybullet_sim.client import CommandPublisher, SensorSubscriber, SimConnection, SimConnectionError
-        from gazebo_msgs.msg import ContactsState
 
         init_ros_node("robot_rl_env")
         hint = f"is the sim node running? (e.g. {robot.sim_launch})"
