@@ -383,11 +383,13 @@ def test_env_over_ros_with_no_sim_names_the_service_and_the_launch(master, tmp_p
     assert "roslaunch pybullet_sim hopper_sim.launch" in line
 
 
-def test_env_over_ros_without_init_node_works(master, tmp_path):
-    master.start(["roslaunch", "pybullet_sim", "cube_sim.launch", "robot_state_publisher:=false"],
+def test_env_over_ros_without_init_node_works_and_leaves_a_running_sim_running(master, tmp_path):
+    master.start(["roslaunch", "pybullet_sim", "cube_sim.launch", "robot_state_publisher:=false", "paused:=false"],
                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     result = env_over_ros(master, tmp_path, "MovingCubeOneDiskWalk-v0", timeout=10.0)
     assert result.returncode == 0 and result.stdout.strip().endswith("stepped"), result.stderr[-3000:]
+    physics = master.run(["rosservice", "call", "/gazebo/get_physics_properties"], timeout=30).stdout
+    assert "pause: False" in physics, physics
     master.close()
 
 
@@ -605,3 +607,18 @@ def _socket_inodes(pid: int) -> list[int]:
         if target.startswith("socket:["):
             inodes.append(int(target[8:-1]))
     return inodes
+
+
+MEMORY_SCRIPT = Path(__file__).with_name("memory_client.py")
+
+
+def test_memory_stays_flat_over_10000_resets_and_100000_lockstep_steps(master, tmp_path):
+    master.start(["roslaunch", "pybullet_sim", "cube_sim.launch", "robot_state_publisher:=false"],
+                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    wait_for(lambda: "/pybullet_sim/step" in str(master.params.getSystemState()[2]), 60, "the cube sim")
+    result = master.run([sys.executable, str(MEMORY_SCRIPT), str(node_pid(master, "/pybullet_sim"))], timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    growth = json.loads(result.stdout.strip().splitlines()[-1])
+    assert growth["resets"] == 10000 and growth["steps"] == 100000
+    assert growth["sim_kib"] < 8 * 1024 and growth["client_kib"] < 8 * 1024, growth
+    master.close()

@@ -17,9 +17,11 @@ import rospy
 from std_msgs.msg import Float64
 from std_srvs.srv import Empty
 
+from gazebo_msgs.srv import GetPhysicsProperties
 from pybullet_sim.srv import Step, StepRequest
 
 STEP_SERVICE = "/pybullet_sim/step"
+PHYSICS_SERVICE = "/gazebo/get_physics_properties"
 GAZEBO_SERVICES = ("/gazebo/pause_physics", "/gazebo/unpause_physics", "/gazebo/reset_world",
                    "/gazebo/reset_simulation")
 HINT = "is the sim node running? (e.g. roslaunch pybullet_sim cube_sim.launch)"
@@ -176,13 +178,13 @@ class CallWatchdog:
 
 
 class SimConnection:
-    """pause / unpause / reset_world / reset_simulation / step on the sim node, every call bounded by
-    `timeout` seconds of wall time."""
+    """pause / unpause / reset_world / reset_simulation / step / is_paused on the sim node, every call
+    bounded by `timeout` seconds of wall time."""
 
     def __init__(self, timeout: float = 10.0, hint: str = HINT):
         self.timeout = timeout
         self.hint = hint
-        for name in GAZEBO_SERVICES + (STEP_SERVICE,):
+        for name in GAZEBO_SERVICES + (STEP_SERVICE, PHYSICS_SERVICE):
             try:
                 rospy.wait_for_service(name, timeout)
             except rospy.ROSInterruptException:
@@ -191,6 +193,7 @@ class SimConnection:
                 raise SimConnectionError(f"service {name} is not available after {timeout} s; {hint}") from None
         self._empty = {name: rospy.ServiceProxy(name, Empty, persistent=True) for name in GAZEBO_SERVICES}
         self._step = rospy.ServiceProxy(STEP_SERVICE, Step, persistent=True)
+        self._physics = rospy.ServiceProxy(PHYSICS_SERVICE, GetPhysicsProperties, persistent=True)
         self._request = StepRequest()
         self._watchdog = CallWatchdog(timeout)
 
@@ -200,15 +203,21 @@ class SimConnection:
                                       f"frozen or overloaded (is it stopped, or stepping a huge request?)")
         return SimConnectionError(f"service {name} failed: {error}; {self.hint}")
 
-    def _call_empty(self, name: str) -> None:
-        proxy = self._empty[name]
+    def _call(self, name: str, proxy: rospy.ServiceProxy, request: Any = None) -> Any:
         self._watchdog.start(proxy)
         try:
-            proxy()
+            return proxy() if request is None else proxy(request)
         except (rospy.ServiceException, rospy.ROSException) as error:
             raise self._failed(name, proxy, error) from None
         finally:
             self._watchdog.end()
+
+    def _call_empty(self, name: str) -> None:
+        self._call(name, self._empty[name])
+
+    def is_paused(self) -> bool:
+        """Whether physics is paused (Gazebo's get_physics_properties)."""
+        return bool(self._call(PHYSICS_SERVICE, self._physics).pause)
 
     def pause(self) -> None:
         self._call_empty("/gazebo/pause_physics")
@@ -230,16 +239,10 @@ class SimConnection:
         request.steps = steps
         request.command_topics = [c.topic for c in commands]
         request.command_counts = [c.count for c in commands]
-        self._watchdog.start(self._step)
-        try:
-            return self._step(request).stamp
-        except (rospy.ServiceException, rospy.ROSException) as error:
-            raise self._failed(STEP_SERVICE, self._step, error) from None
-        finally:
-            self._watchdog.end()
+        return self._call(STEP_SERVICE, self._step, request).stamp
 
     def close(self) -> None:
         self._watchdog.close()
-        for proxy in (*self._empty.values(), self._step):
+        for proxy in (*self._empty.values(), self._step, self._physics):
             proxy.close()
 

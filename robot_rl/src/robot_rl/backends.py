@@ -136,7 +136,8 @@ class RosBackend(Backend):
 
     The robot (topics, controllers, sensors) is read from the sim node's own parameters, so the
     env and the sim cannot disagree; `robot` is the robot the caller expects, checked against them.
-    Makes this process a ROS node (init_ros_node) if it is not one yet."""
+    Makes this process a ROS node (init_ros_node) if it is not one yet. Pauses the sim for lockstep;
+    close() leaves it running again if it was running before."""
 
     def __init__(self, robot: RobotSpec, timeout: float = 10.0, sim_node: str = SIM_NODE):
         import rospy
@@ -175,6 +176,7 @@ class RosBackend(Backend):
             publisher.wait_for_subscriber(timeout)
         for subscriber in self._subscribers:
             subscriber.wait_for_connection(timeout)
+        self._was_running = not self.sim.is_paused()  # close() leaves the sim as it found it
         self.sim.pause()
 
     def _wait(self, marks: list[int], stamp: Any = None) -> Readings:
@@ -216,6 +218,8 @@ class RosBackend(Backend):
             publisher.unregister()
         for subscriber in self._subscribers:
             subscriber.unregister()
+        if self._was_running:
+            self.sim.unpause()
         self.sim.close()
 
 

@@ -5,7 +5,6 @@ were different states and nothing separated the numbers. Keys here are bin indic
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -80,16 +79,5 @@ class Discretiser:
         """State key such as "5_5_5_5_1_5_5_10"."""
         return "_".join(str(i) for i in self.digitise(obs))
 
-    @property
-    def n_states(self) -> int:
-        return math.prod(b + 1 for b in self.bins)
-
     def to_dict(self) -> dict[str, Any]:
         return {"format": FORMAT, "edges": [e.tolist() for e in self.edges], "indices": self.indices}
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> Discretiser:
-        fmt = d.get("format") if isinstance(d, dict) else None
-        if fmt != FORMAT:
-            raise ValueError(f"not a Discretiser: format is {fmt!r}, expected {FORMAT!r}")
-        return cls.from_edges(d["edges"], d["indices"])

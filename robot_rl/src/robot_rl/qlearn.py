@@ -4,17 +4,13 @@ Differences from the tutorial:
 - every random draw comes from the instance's own ``random.Random(seed)``, never the global module;
 - ``learn(..., terminal=True)`` uses the reward alone as target: the tutorial bootstrapped from
   the Q-values of the terminal state, which never get updated and so only add noise;
-- the table, hyper-parameters and RNG state are saved as JSON (no pickle) and reload exactly.
+- the table, hyper-parameters and RNG state go to JSON (no pickle) and reload exactly (to_dict/from_dict).
 """
 from __future__ import annotations
 
-import json
 import random
 from collections.abc import Iterable
-from pathlib import Path
 from typing import Any, Literal, overload
-
-from robot_rl.atomic import StrPath, write_json_atomic
 
 FORMAT = "robot_rl.qlearn/1"
 
@@ -118,10 +114,3 @@ class QLearn:
         ql.q = {(str(s), int(a)): float(v) for s, a, v in d["q"]}
         ql.rng.setstate(_to_tuples(d["rng_state"]))
         return ql
-
-    def save(self, path: StrPath) -> None:
-        write_json_atomic(path, self.to_dict())
-
-    @classmethod
-    def load(cls, path: StrPath) -> QLearn:
-        return cls.from_dict(json.loads(Path(path).read_text(encoding="utf-8")))
