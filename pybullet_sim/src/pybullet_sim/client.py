@@ -12,13 +12,17 @@ import time
 import warnings
 from typing import Callable, Dict, Generic, Iterable, Optional, TypeVar
 
+import numpy as np
 import rospy
 from std_msgs.msg import Float64
 from std_srvs.srv import Empty
 
-from pybullet_sim.srv import Step, StepRequest
+from pybullet_sim.srv import Render, Step, StepRequest
+
+from .messages import image_array
 
 STEP_SERVICE = "/pybullet_sim/step"
+RENDER_SERVICE = "/pybullet_sim/render"
 GAZEBO_SERVICES = ("/gazebo/pause_physics", "/gazebo/unpause_physics", "/gazebo/reset_world",
                    "/gazebo/reset_simulation")
 HINT = "is the sim node running? (e.g. roslaunch pybullet_sim cube_sim.launch)"
@@ -191,6 +195,7 @@ class SimConnection:
         self._empty = {name: rospy.ServiceProxy(name, Empty, persistent=True) for name in GAZEBO_SERVICES}
         self._step = rospy.ServiceProxy(STEP_SERVICE, Step, persistent=True)
         self._request = StepRequest()
+        self._render: rospy.ServiceProxy | None = None  # made on the first render()
         self._watchdog = CallWatchdog(timeout)
 
     def _failed(self, name: str, proxy: rospy.ServiceProxy, error: Exception) -> SimConnectionError:
@@ -237,8 +242,25 @@ class SimConnection:
         finally:
             self._watchdog.end()
 
+    def render(self, width: int, height: int) -> np.ndarray:
+        """An RGB image (height x width x 3, uint8) of the robot from the sim's following camera."""
+        if self._render is None:
+            try:
+                rospy.wait_for_service(RENDER_SERVICE, self.timeout)
+            except rospy.ROSException:  # also on shutdown (ROSInterruptException)
+                raise SimConnectionError(f"service {RENDER_SERVICE} is not available after {self.timeout} s; "
+                                         f"{self.hint}") from None
+            self._render = rospy.ServiceProxy(RENDER_SERVICE, Render, persistent=True)
+        self._watchdog.start(self._render)
+        try:
+            return image_array(self._render(width, height).image)
+        except (rospy.ServiceException, rospy.ROSException) as error:
+            raise self._failed(RENDER_SERVICE, self._render, error) from None
+        finally:
+            self._watchdog.end()
+
     def close(self) -> None:
         self._watchdog.close()
-        for proxy in (*self._empty.values(), self._step):
+        for proxy in (*self._empty.values(), self._step, *([self._render] if self._render else [])):
             proxy.close()
 

@@ -4,7 +4,8 @@ Params (private) -> a World; World readings -> messages; Gazebo's services -> Wo
 owns /clock (every node runs with use_sim_time). Two states as in Gazebo: running, where the main
 loop advances physics at ~real_time_factor x wall time (0 = as fast as possible) and publishes each
 sensor at its own rate of sim time, and paused, where time only moves through the lockstep service
-~step (pybullet_sim/Step), which publishes every sensor once per call.
+~step (pybullet_sim/Step), which publishes every sensor once per call. ~render (pybullet_sim/Render)
+answers an RGB image of the robot from the World's following camera.
 
 Private params: ~time_step (0.001 s), ~real_time_factor (1.0), ~paused (false), ~gui (false), ~seed (0),
 ~command_timeout (2.0 s: how long ~step waits for the commands its caller announced),
@@ -29,9 +30,9 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Empty, EmptyResponse
 
 from pybullet_sim.msg import ContactsState
-from pybullet_sim.srv import Step, StepResponse
+from pybullet_sim.srv import Render, RenderResponse, Step, StepResponse
 from . import messages
-from .client import STEP_SERVICE, synchronous_publisher
+from .client import RENDER_SERVICE, STEP_SERVICE, synchronous_publisher
 from .config import ConfigError, SensorConfig, parse_robot_config
 from .world import UrdfError, World
 
@@ -124,6 +125,7 @@ class SimNode:
         rospy.Service("/gazebo/reset_simulation", Empty, self._handle_reset_simulation)
         rospy.Service("/gazebo/reset_world", Empty, self._handle_reset_world)
         rospy.Service(STEP_SERVICE, Step, self._handle_step)
+        rospy.Service(RENDER_SERVICE, Render, self._handle_render)
         with self._lock:
             self._publish_all(force_clock=True)
         rospy.loginfo("pybullet_sim: %s loaded, time step %.4f s, %s, real_time_factor %.2f",
@@ -255,6 +257,14 @@ class SimNode:
             self.world.step(request.steps)
             self._publish_all()
             return StepResponse(stamp=self._stamp())
+
+    def _handle_render(self, request):
+        with self._exclusive():
+            try:
+                rgb = self.world.render(request.width, request.height)
+            except ValueError as error:
+                raise rospy.ServiceException(f"{RENDER_SERVICE}: {error}") from None
+            return RenderResponse(image=messages.image_msg(rgb, self._stamp()))
 
     # -- main loop ------------------------------------------------------------------------------
     def spin(self):
