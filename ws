@@ -6,6 +6,7 @@
 #   ./ws run [cube|hopper] [NAME:=VALUE ...]  set up, then train (roslaunch <robot's package> main.launch);
 #                               rviz:=true also installs rviz (Debian's) and shows the robot in it
 #   ./ws rviz [cube|hopper] [NAME:=VALUE ...] set up with rviz, then the robot's sim running, seen in rviz
+#   ./ws plot [NAMESPACE] [--output PNG]      a live plot of the reward topics (rqt_plot is not in Debian 12)
 #   ./ws test [PYTEST ARGS]     set up, then the linters and every test (pytest + rostest)
 #   ./ws lint                   set up, then only the linters (ruff, mypy, catkin_lint, roslaunch-check)
 #   ./ws bench [--reps N]       set up, then the speed benchmark (table + bench_results.json)
@@ -34,9 +35,10 @@ APT_PACKAGES=(
   python3-tf2-msgs ros-tf2-msgs tf-tools librostest-dev libsensor-msgs-dev
 )
 
-# Installed only when asked for: rviz (./ws rviz, ./ws run ... rviz:=true, ./ws test) and, for the
-# tests that need a display, Xvfb.
+# Installed only when asked for: rviz (./ws rviz, ./ws run ... rviz:=true, ./ws test), Tk for the reward
+# plot's window (./ws plot, ./ws test) and, for the tests that need a display, Xvfb.
 RVIZ_APT_PACKAGES=(rviz python3-visualization-msgs ros-visualization-msgs)
+PLOT_APT_PACKAGES=(python3-tk)
 TEST_APT_PACKAGES=(xvfb)
 
 log() { echo "[ws] $*" >&2; }
@@ -137,7 +139,7 @@ launch_of() {
 }
 
 usage() {
-  sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'
 }
 
 # The usage, then each training launch file's arguments, as roslaunch itself lists them.
@@ -219,6 +221,11 @@ case "$command" in
     ensure_apt_packages "${RVIZ_APT_PACKAGES[@]}"
     enter_environment
     exec roslaunch pybullet_sim "${robot}_sim.launch" rviz:=true paused:=false "$@" ;;
+  plot)
+    setup
+    ensure_apt_packages "${PLOT_APT_PACKAGES[@]}"
+    enter_environment
+    exec rosrun robot_rl plot_rewards.py "$@" ;;
   help|-h|--help)
     setup
     enter_environment
@@ -229,7 +236,7 @@ case "$command" in
     lint ;;
   test)
     setup
-    ensure_apt_packages "${RVIZ_APT_PACKAGES[@]}" "${TEST_APT_PACKAGES[@]}"
+    ensure_apt_packages "${RVIZ_APT_PACKAGES[@]}" "${PLOT_APT_PACKAGES[@]}" "${TEST_APT_PACKAGES[@]}"
     private_master
     enter_environment
     lint

@@ -89,9 +89,9 @@ def _write_video(tasks: Sequence[TaskSpec[Any]], task: TaskSpec[Any], run: RunDi
                       backend="direct", seed=seed, video=VideoRequest(partial, episodes=1))
     os.replace(partial, run.video_mp4)
     metrics = ", ".join(f"{name} {value:.3g}" for name, value in report["greedy"].items() if value is not None)
-    rospy.loginfo("Video of the greedy policy: %s (%d frames at %.1f frames/s, %.1f s of sim time, made in %.1f s; "
-                  "%s)", run.video_mp4, report["video"]["frames"], report["video"]["fps"], report["horizon_s"],
-                  time.monotonic() - start, metrics)
+    rospy.loginfo("Video of the greedy policy: %s (%d frames at %.1f frames/s: one episode of at most %.1f s of sim "
+                  "time, made in %.1f s; %s)", run.video_mp4, report["video"]["frames"], report["video"]["fps"],
+                  report["horizon_s"], time.monotonic() - start, metrics)
 
 
 def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
