@@ -3,7 +3,10 @@
 # ROS 1 packages, a venv from /usr/bin/python3 with the pinned requirements, the catkin build) and
 # does only what is missing, so a second run starts in seconds.
 #
-#   ./ws run [cube|hopper] [NAME:=VALUE ...]  set up, then train (roslaunch <robot's package> main.launch)
+#   ./ws run [cube|hopper] [NAME:=VALUE ...]  set up, then train (roslaunch <robot's package> main.launch);
+#                               rviz:=true also installs rviz (Debian's) and shows the robot in it
+#   ./ws rviz [cube|hopper] [NAME:=VALUE ...] set up with rviz, then the robot's sim running, seen in rviz
+#   ./ws plot [NAMESPACE] [--output PNG]      a live plot of the reward topics (rqt_plot is not in Debian 12)
 #   ./ws test [PYTEST ARGS]     set up, then the linters and every test (pytest + rostest)
 #   ./ws lint                   set up, then only the linters (ruff, mypy, catkin_lint, roslaunch-check)
 #   ./ws bench [--reps N]       set up, then the speed benchmark (table + bench_results.json)
@@ -29,8 +32,14 @@ APT_PACKAGES=(
   python3-std-msgs ros-std-msgs python3-std-srvs ros-std-srvs
   python3-geometry-msgs ros-geometry-msgs python3-sensor-msgs ros-sensor-msgs
   python3-nav-msgs ros-nav-msgs python3-rosgraph-msgs ros-rosgraph-msgs
-  python3-tf2-msgs ros-tf2-msgs tf-tools librostest-dev
+  python3-tf2-msgs ros-tf2-msgs tf-tools librostest-dev libsensor-msgs-dev
 )
+
+# Installed only when asked for: rviz (./ws rviz, ./ws run ... rviz:=true, ./ws test), Tk for the reward
+# plot's window (./ws plot, ./ws test) and, for the tests that need a display, Xvfb.
+RVIZ_APT_PACKAGES=(rviz python3-visualization-msgs ros-visualization-msgs)
+PLOT_APT_PACKAGES=(python3-tk)
+TEST_APT_PACKAGES=(xvfb)
 
 log() { echo "[ws] $*" >&2; }
 die() { echo "[ws] error: $*" >&2; exit 1; }
@@ -40,11 +49,13 @@ as_root() {
     die "installing Debian packages needs root (or sudo): $*"; fi
 }
 
+# Install the Debian packages named (default: APT_PACKAGES) that are not installed yet.
 ensure_apt_packages() {
-  local missing=() pkg
+  local packages=("$@") missing=() pkg
+  [ ${#packages[@]} -gt 0 ] || packages=("${APT_PACKAGES[@]}")
   local installed
-  installed="$(dpkg-query -W -f='${Package} ${db:Status-Abbrev}\n' "${APT_PACKAGES[@]}" 2>/dev/null || true)"
-  for pkg in "${APT_PACKAGES[@]}"; do
+  installed="$(dpkg-query -W -f='${Package} ${db:Status-Abbrev}\n' "${packages[@]}" 2>/dev/null || true)"
+  for pkg in "${packages[@]}"; do
     grep -q "^$pkg ii" <<<"$installed" || missing+=("$pkg")
   done
   [ ${#missing[@]} -eq 0 ] && return
@@ -128,7 +139,7 @@ launch_of() {
 }
 
 usage() {
-  sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'
 }
 
 # The usage, then each training launch file's arguments, as roslaunch itself lists them.
@@ -193,10 +204,28 @@ case "$command" in
     done
     launch="$(launch_of "$robot")"
     setup
+    if printf '%s\n' "$@" | grep -qiE '^rviz:=(true|1)$'; then
+      [ -n "${DISPLAY:-}" ] || die "rviz:=true needs a display (DISPLAY is not set)"
+      ensure_apt_packages "${RVIZ_APT_PACKAGES[@]}"
+    fi
     private_master
     enter_environment
     # shellcheck disable=SC2086
     exec rosrun workspace_tools roslaunch_checked.py $launch "results_dir:=$ROOT/training_results" "$@" ;;
+  rviz)
+    robot=cube
+    if [ $# -gt 0 ] && [[ "$1" != *:=* ]]; then robot="$1"; shift; fi
+    case "$robot" in cube|hopper) ;; *) die "unknown robot '$robot' (known: cube, hopper)" ;; esac
+    [ -n "${DISPLAY:-}" ] || die "rviz needs a display (DISPLAY is not set)"
+    setup
+    ensure_apt_packages "${RVIZ_APT_PACKAGES[@]}"
+    enter_environment
+    exec roslaunch pybullet_sim "${robot}_sim.launch" rviz:=true paused:=false "$@" ;;
+  plot)
+    setup
+    ensure_apt_packages "${PLOT_APT_PACKAGES[@]}"
+    enter_environment
+    exec rosrun robot_rl plot_rewards.py "$@" ;;
   help|-h|--help)
     setup
     enter_environment
@@ -207,6 +236,7 @@ case "$command" in
     lint ;;
   test)
     setup
+    ensure_apt_packages "${RVIZ_APT_PACKAGES[@]}" "${PLOT_APT_PACKAGES[@]}" "${TEST_APT_PACKAGES[@]}"
     private_master
     enter_environment
     lint

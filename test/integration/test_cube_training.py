@@ -7,6 +7,7 @@ import subprocess
 import time
 from pathlib import Path
 
+import imageio_ffmpeg
 import pytest
 import yaml
 
@@ -16,7 +17,7 @@ from conftest import REPO, Processes, RosMaster, launch_args
 
 CONFIG = ONE_DISK_WALK.config_path
 HEADER = "episode,steps,return,epsilon,sim_time,wall_time,y_distance,success"
-RESULTS_FILES = ("params.yaml", "episodes.csv", "qtable.json", "learning_curve.png", "summary.json")
+RESULTS_FILES = ("params.yaml", "episodes.csv", "qtable.json", "learning_curve.png", "summary.json", "video.mp4")
 
 
 def write_config(path: Path, **changes) -> Path:
@@ -95,6 +96,12 @@ def test_three_episodes_end_to_end_over_ros(three_episodes):
     assert (params["nepisodes"], params["nsteps"]) == (3, 50)
     assert re.search(r"^\[INFO\].*EP: 3 - ", output, re.M), output[-3000:]
     assert "REQUIRED process [movingcube_gym" in output and "process has finished cleanly" in output
+    # The greedy policy's video: one episode of at most 10 s of sim time at 1 frame per 0.06 s step.
+    video = re.search(r"Video of the greedy policy: (\S+) \((\d+) frames at 16.7 frames/s", output)
+    assert video and Path(video[1]) == (run / "video.mp4").resolve(), output[-3000:]
+    assert 1 <= int(video[2]) <= 1 + round(10.0 / 0.06)
+    assert imageio_ffmpeg.count_frames_and_secs(str(run / "video.mp4"))[0] == int(video[2])
+    assert not (run / "video.partial.mp4").exists()
 
 
 def test_two_training_runs_over_ros_with_the_same_seed_write_identical_returns(three_episodes, tmp_path):
@@ -103,9 +110,11 @@ def test_two_training_runs_over_ros_with_the_same_seed_write_identical_returns(t
     results, log = tmp_path / "results", tmp_path / "roslaunch.log"
     master = RosMaster(tmp_path / "ros", cwd=REPO)
     try:
-        assert wait_exit(start_training(master, results, config, log), 180, log) == 0, log.read_text()[-3000:]
+        assert wait_exit(start_training(master, results, config, log, video="false"), 180, log) == 0, \
+            log.read_text()[-3000:]
     finally:
         master.close()
+    assert not (results / "moving_cube" / "latest" / "video.mp4").exists(), "video:=false writes no video"
 
     def returns(root: Path) -> list:
         return [line.split(",")[2] for line in complete_lines(root / "moving_cube" / "latest" / "episodes.csv")[1:]]
@@ -136,6 +145,32 @@ def test_evaluate_prints_one_json_line(three_episodes, tmp_path):
     assert outputs[0].stdout.strip().splitlines()[-1] == outputs[1].stdout.strip().splitlines()[-1], \
         "the run folder and its qtable.json are the same Q-table; the direct backend is deterministic"
     assert missing.returncode == 2 and "cannot read the trained Q-table" in missing.stderr
+
+
+def test_evaluate_video_records_greedy_episodes_and_changes_no_number(three_episodes, tmp_path):
+    run, video = three_episodes["results"] / "moving_cube" / "latest", tmp_path / "greedy.mp4"
+    evaluate = ["rosrun", "moving_cube_training", "evaluate.py", "--qtable", str(run), "--episodes", "3",
+                "--horizon-s", "1.2"]
+    runner = Processes(tmp_path)
+    try:
+        plain = runner.run(evaluate, timeout=120)
+        recorded = runner.run([*evaluate, "--video", str(video), "--video-size", "160x120"], timeout=120)
+        bad = [runner.run([*evaluate, *args], timeout=60) for args in (
+            ["--video", str(tmp_path / "greedy.avi")], ["--video", str(video), "--video-episodes", "4"],
+            ["--video", str(video), "--video-size", "161x120"], ["--video", str(tmp_path / "no" / "x.mp4")])]
+    finally:
+        runner.close()
+    assert plain.returncode == 0 and recorded.returncode == 0, plain.stderr[-2000:] + recorded.stderr[-2000:]
+    without, with_video = (json.loads(r.stdout.strip().splitlines()[-1]) for r in (plain, recorded))
+    info = with_video.pop("video")
+    assert with_video == without, "recording must not change what is evaluated"
+    assert (info["path"], info["episodes"], info["fps"]) == (str(video), 3, pytest.approx(1 / 0.06))
+    assert 3 <= info["frames"] <= 3 * (1 + 20)  # a frame at each reset and after each of at most 20 steps
+    frames, seconds = imageio_ffmpeg.count_frames_and_secs(str(video))  # ffmpeg decodes the whole file
+    assert frames == info["frames"] and seconds == pytest.approx(frames * 0.06, abs=0.07)
+    for result, expected in zip(bad, ("must name an .mp4 file", "--video-episodes must be from 1 to --episodes (3)",
+                                      "is not WIDTHxHEIGHT in even pixels", "does not exist")):
+        assert result.returncode == 2 and expected in result.stderr, result.stderr
 
 
 # -- lockstep with a second backend in one node --------------------------------------------------

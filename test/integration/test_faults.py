@@ -24,8 +24,8 @@ from workspace_tools.processes import Processes, RosMaster, free_port, processes
 from conftest import REPO
 
 TRAIN = ["rosrun", "workspace_tools", "roslaunch_checked.py"]  # what ./ws run starts
-CUBE_TRAINING = [*TRAIN, "moving_cube_training", "main.launch"]
-HOPPER_TRAINING = [*TRAIN, "hopper_training", "main.launch"]
+CUBE_TRAINING = [*TRAIN, "moving_cube_training", "main.launch", "video:=false"]
+HOPPER_TRAINING = [*TRAIN, "hopper_training", "main.launch", "video:=false"]
 CUBE_URDF = MOVING_CUBE.urdf_path.read_text()
 CUBE_SIM = yaml.safe_load(MOVING_CUBE.sim_config_path.read_text())
 INTERRUPTED = 130
@@ -205,7 +205,7 @@ def test_a_urdf_that_is_not_xml_stops_training_with_the_sims_error_only(master, 
     urdf.write_text("<robot name='moving_cube'><link name='a'>")
     sim_launch = tmp_path / "broken_sim.launch"
     sim_launch.write_text(f"""<launch>
-  <arg name="paused"/><arg name="seed"/><arg name="gui"/><arg name="robot_state_publisher"/>
+  <arg name="paused"/><arg name="seed"/><arg name="gui"/><arg name="robot_state_publisher"/><arg name="rviz"/>
   <include file="$(find pybullet_sim)/launch/sim.launch" pass_all_args="true">
     <arg name="urdf" value="{urdf}"/>
     <arg name="sim_config" value="$(find moving_cube_description)/config/moving_cube_sim.yaml"/>
@@ -220,6 +220,7 @@ def test_a_urdf_that_is_not_xml_stops_training_with_the_sims_error_only(master, 
     <arg name="nepisodes" value=""/><arg name="resume" value="false"/><arg name="seed" value="0"/>
     <arg name="results_dir" value="{tmp_path / 'results'}"/><arg name="quiet" value="false"/>
     <arg name="gui" value="false"/><arg name="robot_state_publisher" value="false"/>
+    <arg name="rviz" value="false"/><arg name="video" value="false"/>
   </include>
   <node pkg="moving_cube_training" type="start_training.py" name="movingcube_gym" output="screen" required="true"/>
 </launch>""")

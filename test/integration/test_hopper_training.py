@@ -93,6 +93,8 @@ def test_three_episodes_over_ros_then_evaluate(ros_master, tmp_path):
     summary = json.loads((run / "summary.json").read_text())
     assert summary["completed"] is True
     assert (summary["episodes"], summary["env_steps"]) == (NEPISODES, sum(steps))
+    # The greedy policy's video: 1 ms steps, so one frame every 34 steps (29.4 frames/s, real time).
+    assert "frames at 29.4 frames/s" in log and (run / "video.mp4").stat().st_size > 0, log[-4000:]
     for text in ("EP: 1", "EP: 2", "EP: 3", "Overall score", "Best 100 score"):
         assert text in log, f"no '{text}' in the training log:\n{log[-4000:]}"
 

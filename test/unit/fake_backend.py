@@ -2,6 +2,8 @@
 every reset, command and step the env makes."""
 from __future__ import annotations
 
+import numpy as np
+
 from robot_rl.backends import Backend, Readings
 
 
@@ -29,6 +31,9 @@ class FakeBackend(Backend):
     def step(self, physics_steps: int) -> Readings:
         self.steps.append(physics_steps)
         return self.script.pop(0) if self.script else self.after
+
+    def render(self, width: int, height: int) -> np.ndarray:
+        return np.zeros((height, width, 3), dtype=np.uint8)
 
     def close(self) -> None:
         self.closed = True

@@ -13,14 +13,18 @@ import warnings
 from collections.abc import Callable, Iterable
 from typing import Any, Generic, TypeVar
 
+import numpy as np
 import rospy
 from std_msgs.msg import Float64
 from std_srvs.srv import Empty
 
 from gazebo_msgs.srv import GetPhysicsProperties
-from pybullet_sim.srv import Step, StepRequest
+from pybullet_sim.srv import Render, RenderRequest, Step, StepRequest
+
+from .messages import image_array
 
 STEP_SERVICE = "/pybullet_sim/step"
+RENDER_SERVICE = "/pybullet_sim/render"
 PHYSICS_SERVICE = "/gazebo/get_physics_properties"
 GAZEBO_SERVICES = ("/gazebo/pause_physics", "/gazebo/unpause_physics", "/gazebo/reset_world",
                    "/gazebo/reset_simulation")
@@ -195,6 +199,7 @@ class SimConnection:
         self._step = rospy.ServiceProxy(STEP_SERVICE, Step, persistent=True)
         self._physics = rospy.ServiceProxy(PHYSICS_SERVICE, GetPhysicsProperties, persistent=True)
         self._request = StepRequest()
+        self._render: rospy.ServiceProxy | None = None  # made on the first render()
         self._watchdog = CallWatchdog(timeout)
 
     def _failed(self, name: str, proxy: rospy.ServiceProxy, error: Exception) -> SimConnectionError:
@@ -241,8 +246,19 @@ class SimConnection:
         request.command_counts = [c.count for c in commands]
         return self._call(STEP_SERVICE, self._step, request).stamp
 
+    def render(self, width: int, height: int) -> np.ndarray:
+        """An RGB image (height x width x 3, uint8) of the robot from the sim's following camera."""
+        if self._render is None:
+            try:
+                rospy.wait_for_service(RENDER_SERVICE, self.timeout)
+            except rospy.ROSException:  # also on shutdown (ROSInterruptException)
+                raise SimConnectionError(f"service {RENDER_SERVICE} is not available after {self.timeout} s; "
+                                         f"{self.hint}") from None
+            self._render = rospy.ServiceProxy(RENDER_SERVICE, Render, persistent=True)
+        return image_array(self._call(RENDER_SERVICE, self._render, RenderRequest(width, height)).image)
+
     def close(self) -> None:
         self._watchdog.close()
-        for proxy in (*self._empty.values(), self._step, self._physics):
+        for proxy in (*self._empty.values(), self._step, self._physics, *([self._render] if self._render else [])):
             proxy.close()
 

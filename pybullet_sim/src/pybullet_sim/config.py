@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 JOINT_STATE_CONTROLLER = "joint_state_controller/JointStateController"
@@ -57,6 +57,19 @@ class SensorConfig:
 
 
 @dataclass(frozen=True)
+class CameraConfig:
+    """The rendering camera: it follows the robot's base link, looking at it (raised by `z_offset` m) from
+    `distance` m; `yaw` in degrees about world z (0: from -y looking along +y, 90: from +x looking along
+    -x), `pitch` in degrees (negative: from above)."""
+
+    distance: float = 1.5
+    yaw: float = 0.0
+    pitch: float = -20.0
+    z_offset: float = 0.0
+    fov: float = 60.0  # vertical field of view, degrees
+
+
+@dataclass(frozen=True)
 class RobotConfig:
     robot_namespace: str
     spawn_xyz: tuple[float, ...]   # x, y, z
@@ -65,6 +78,7 @@ class RobotConfig:
     controllers: tuple[JointControllerConfig, ...]
     sensors: tuple[SensorConfig, ...]
     joint_state_controller: str = "joint_state_controller"  # the name of the JointStateController
+    camera: CameraConfig = CameraConfig()
 
     @property
     def joint_states_topic(self) -> str:
@@ -159,6 +173,19 @@ def parse_robot_config(params: Mapping[str, Any], where: str = "~") -> RobotConf
             frame_id=_text(entry, "frame_id", s_where),
             update_rate=_number(entry, "update_rate", s_where, minimum=0.0, exclusive_minimum=True),
             gaussian_noise=_number(entry, "gaussian_noise", s_where, 0.0, minimum=0.0)))
+    camera = _mapping(params, "camera", where)
+    c_where, default = f"{where}/camera", CameraConfig()
+    known = [f.name for f in fields(CameraConfig)]
+    unknown = sorted(set(camera) - set(known))
+    if unknown:
+        raise ConfigError(f"parameter {c_where} has unknown keys {unknown} (known: {', '.join(known)})")
+    camera_config = CameraConfig(
+        distance=_number(camera, "distance", c_where, default.distance, minimum=0.0, exclusive_minimum=True),
+        yaw=_number(camera, "yaw", c_where, default.yaw), pitch=_number(camera, "pitch", c_where, default.pitch),
+        z_offset=_number(camera, "z_offset", c_where, default.z_offset),
+        fov=_number(camera, "fov", c_where, default.fov, minimum=0.0, exclusive_minimum=True))
+    if camera_config.fov >= 180.0:
+        raise ConfigError(f"parameter {c_where}/fov must be < 180 degrees, got {camera_config.fov!r}")
     return RobotConfig(robot_namespace=namespace, spawn_xyz=xyz, spawn_rpy=rpy, joint_state_rate=joint_state_rate,
                        controllers=tuple(controllers), sensors=tuple(sensors),
-                       joint_state_controller=joint_state_controller)
+                       joint_state_controller=joint_state_controller, camera=camera_config)

@@ -5,10 +5,11 @@ into the same readings, so task envs never see a message type.
 """
 from __future__ import annotations
 
+import numpy as np
 import rospy
 from geometry_msgs.msg import Pose, TransformStamped, Twist, Vector3, Wrench
 from nav_msgs.msg import Odometry
-from sensor_msgs.msg import Imu, JointState
+from sensor_msgs.msg import Image, Imu, JointState
 
 from controller_manager_msgs.msg import ControllerState, HardwareInterfaceResources
 from gazebo_msgs.msg import ContactsState, ContactState, ODEPhysics
@@ -78,6 +79,22 @@ def contacts_msg(reading: ContactReading, stamp: rospy.Time) -> ContactsState:
         state.total_wrench = Wrench(force=_vector(reading.total_force), torque=_vector(reading.total_torque))
         msg.states.append(state)
     return msg
+
+
+def image_msg(rgb: np.ndarray, stamp: rospy.Time) -> Image:
+    """An HxWx3 uint8 RGB array as a sensor_msgs/Image (encoding rgb8)."""
+    height, width, _ = rgb.shape
+    msg = Image(height=height, width=width, encoding="rgb8", is_bigendian=0, step=3 * width, data=rgb.tobytes())
+    msg.header.stamp = stamp
+    return msg
+
+
+def image_array(msg: Image) -> np.ndarray:
+    """An rgb8 sensor_msgs/Image as an HxWx3 uint8 array."""
+    if msg.encoding != "rgb8" or msg.step != 3 * msg.width:
+        raise ValueError(f"expected an rgb8 image without row padding, got {msg.encoding} with step {msg.step} for "
+                         f"width {msg.width}")
+    return np.frombuffer(msg.data, dtype=np.uint8).reshape(msg.height, msg.width, 3).copy()
 
 
 def transform_msg(parent: str, child: str, position, orientation, stamp: rospy.Time) -> TransformStamped:

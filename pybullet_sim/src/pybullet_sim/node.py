@@ -4,7 +4,8 @@ Params (private) -> a World; World readings -> messages; Gazebo's services -> Wo
 owns /clock (every node runs with use_sim_time). Two states as in Gazebo: running, where the main
 loop advances physics at ~real_time_factor x wall time (0 = as fast as possible) and publishes each
 sensor at its own rate of sim time, and paused, where time only moves through the lockstep service
-~step (pybullet_sim/Step), which publishes every sensor once per call.
+~step (pybullet_sim/Step), which publishes every sensor once per call. ~render (pybullet_sim/Render)
+answers an RGB image of the robot from the World's following camera.
 
 Services, with Gazebo's names and types: /gazebo/{pause,unpause}_physics, reset_{simulation,world}
 (std_srvs/Empty), /gazebo/{get,set}_physics_properties, get_world_properties, {get,set}_model_state,
@@ -59,10 +60,10 @@ from gazebo_msgs.srv import (
     SetPhysicsProperties,
     SetPhysicsPropertiesResponse,
 )
-from pybullet_sim.srv import Step, StepRequest, StepResponse
+from pybullet_sim.srv import Render, RenderResponse, Step, StepRequest, StepResponse
 
 from . import messages, physics_properties
-from .client import STEP_SERVICE, synchronous_publisher
+from .client import RENDER_SERVICE, STEP_SERVICE, synchronous_publisher
 from .config import ConfigError, SensorConfig, parse_robot_config
 from .controller_manager import ControllerManager
 from .physics_properties import OdeConfig, PhysicsProperties
@@ -176,6 +177,7 @@ class SimNode:
         rospy.Service(f"{manager}/list_controllers", ListControllers, self._handle_list_controllers)
         rospy.Service(f"{manager}/load_controller", LoadController, self._handle_load_controller)
         rospy.Service(f"{manager}/unload_controller", UnloadController, self._handle_unload_controller)
+        rospy.Service(RENDER_SERVICE, Render, self._handle_render)
         with self._lock:
             self._publish_all(force_clock=True)
         rospy.loginfo("pybullet_sim: %s loaded, time step %.4f s, %s, real_time_factor %.2f",
@@ -460,6 +462,14 @@ class SimNode:
         with self._exclusive():
             result = self.controllers.unload(request.name)
         return UnloadControllerResponse(ok=self._answer("unload_controller", result))
+
+    def _handle_render(self, request):
+        with self._exclusive():
+            try:
+                rgb = self.world.render(request.width, request.height)
+            except ValueError as error:
+                raise rospy.ServiceException(f"{RENDER_SERVICE}: {error}") from None
+            return RenderResponse(image=messages.image_msg(rgb, self._stamp()))
 
     # -- main loop ------------------------------------------------------------------------------
     def spin(self):

@@ -37,6 +37,7 @@ from .config import ConfigError, JointControllerConfig, RobotConfig, SensorConfi
 from .readings import ContactPoint, ContactReading, FrameState, ImuReading, JointStateReading, OdometryReading
 
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
+MAX_IMAGE_SIZE = 4096  # pixels per side of a rendered image
 GROUND_COLLISION_NAME = "ground_plane::link::collision"
 MIN_TIME_STEP = 1e-6  # s; sim time counts whole nanoseconds
 
@@ -234,6 +235,8 @@ class World:
         self._cid = p.connect(p.GUI if gui else p.DIRECT)
         if self._cid < 0:
             raise RuntimeError("PyBullet could not connect" + (" to a GUI (is DISPLAY set?)" if gui else ""))
+        if gui:
+            p.configureDebugVisualizer(p.COV_ENABLE_GUI, 0, physicsClientId=self._cid)  # the 3D view alone
         try:
             self._build(urdf_text, urdf_joints, urdf_source)
         except Exception:
@@ -604,6 +607,30 @@ class World:
     def read_sensor(self, sensor: SensorConfig):
         """The reading of one configured sensor (odometry, IMU or contact)."""
         return _READERS[sensor.type](self, sensor)
+
+    # -- rendering ------------------------------------------------------------------------------
+    def _camera_target(self) -> tuple[float, float, float]:
+        x, y, z = p.getBasePositionAndOrientation(self._body, physicsClientId=self._cid)[0]
+        return (x, y, z + self.config.camera.z_offset)
+
+    def render(self, width: int, height: int) -> np.ndarray:
+        """An RGB image (height x width x 3, uint8) from the camera that follows the robot's base
+        (config.camera), drawn by PyBullet's TinyRenderer, which needs no display. Changes nothing."""
+        if not all(isinstance(v, int) and 1 <= v <= MAX_IMAGE_SIZE for v in (width, height)):
+            raise ValueError(f"image size must be whole pixels from 1 to {MAX_IMAGE_SIZE} a side, got {width!r} x "
+                             f"{height!r}")
+        camera, cid = self.config.camera, self._cid
+        view = p.computeViewMatrixFromYawPitchRoll(self._camera_target(), camera.distance, camera.yaw, camera.pitch,
+                                                   0.0, 2, physicsClientId=cid)
+        projection = p.computeProjectionMatrixFOV(camera.fov, width / height, 0.01, 100.0, physicsClientId=cid)
+        rgba = p.getCameraImage(width, height, view, projection, renderer=p.ER_TINY_RENDERER, physicsClientId=cid)[2]
+        return np.ascontiguousarray(np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3])
+
+    def aim_gui_camera(self) -> None:
+        """Point the GUI window's camera (World(gui=True)) at the robot as render() does."""
+        camera = self.config.camera
+        p.resetDebugVisualizerCamera(camera.distance, camera.yaw, camera.pitch, self._camera_target(),
+                                     physicsClientId=self._cid)
 
     def link_pose(self, link: str):
         """Noise-free world pose of a link's URDF frame."""

@@ -1,7 +1,8 @@
 """How a task env reaches its robot: over ROS (the product) or in-process (the speed reference).
 
 Both backends expose the same three calls, each returning the same `Readings`:
-`reset(restart_time)`, `set_command(controller, value)` + `step(physics_steps)`. The ROS backend
+`reset(restart_time)`, `set_command(controller, value)` + `step(physics_steps)`; and the same
+`render(width, height)`, an RGB frame from the sim's camera that follows the robot. The ROS backend
 is lockstep: commands are published, one call to the sim's step service advances the paused sim
 exactly N physics steps, and the backend waits (bounded) for every sensor stamped at the new time.
 The direct backend makes the same calls on an in-process World and reads every sensor once per
@@ -15,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
+import numpy as np
 import yaml
 
 from pybullet_sim.config import RobotConfig, parse_robot_config
@@ -75,19 +77,27 @@ class Backend(abc.ABC):
     def step(self, physics_steps: int) -> Readings:
         """Advance exactly `physics_steps` physics steps and return the readings at the new time."""
 
+    @abc.abstractmethod
+    def render(self, width: int, height: int) -> np.ndarray:
+        """An RGB image (height x width x 3, uint8) of the robot from the sim's camera that follows it."""
+
+    def show(self) -> None:  # noqa: B027 (optional: over ROS the sim node's window or rviz shows the robot)
+        """Bring the human view of the robot up to date."""
+
     def close(self) -> None:  # noqa: B027 (optional: a backend without resources keeps this)
         """Release the backend's resources."""
 
 
 class DirectBackend(Backend):
-    """The robot in an in-process World: no ROS, same readings."""
+    """The robot in an in-process World: no ROS, same readings; `gui` opens PyBullet's window."""
 
-    def __init__(self, urdf_path: Path, sim_config_path: Path, time_step: float = 0.001, seed: int = 0):
+    def __init__(self, urdf_path: Path, sim_config_path: Path, time_step: float = 0.001, seed: int = 0,
+                 gui: bool = False):
         from pybullet_sim.world import World  # PyBullet only where it is used
         params = yaml.safe_load(Path(sim_config_path).read_text())
         self.config = parse_robot_config(params, where=str(sim_config_path))
         self.time_step = time_step
-        self.world = World(Path(urdf_path).read_text(), self.config, time_step=time_step, seed=seed,
+        self.world = World(Path(urdf_path).read_text(), self.config, time_step=time_step, seed=seed, gui=gui,
                            urdf_source=str(urdf_path))
         self._read()  # the sim node publishes every sensor once at start: keep the noise streams aligned
 
@@ -108,6 +118,12 @@ class DirectBackend(Backend):
     def step(self, physics_steps: int) -> Readings:
         self.world.step(physics_steps)
         return self._read()
+
+    def render(self, width: int, height: int) -> np.ndarray:
+        return self.world.render(width, height)
+
+    def show(self) -> None:
+        self.world.aim_gui_camera()
 
     def close(self) -> None:
         self.world.close()
@@ -163,6 +179,7 @@ class RosBackend(Backend):
             raise SimConnectionError(f"the sim node {sim_node} simulates {self.config.robot_namespace}, not "
                                      f"{expected.robot_namespace} ({robot.sim_config_path}): start {robot.sim_launch}")
         self.time_step = float(params.get("time_step", 0.001))
+        self.gui = bool(params.get("gui", False))  # whether the sim node shows PyBullet's window
         self._commands: dict[str, CommandPublisher] = {
             c.name: CommandPublisher(self.config.command_topic(c), hint) for c in self.config.controllers}
         kinds = {"p3d": (Odometry, messages.odometry_reading), "imu": (Imu, messages.imu_reading),
@@ -213,6 +230,9 @@ class RosBackend(Backend):
         stamp = self.sim.step(physics_steps, self._commands.values())
         return self._wait(marks, stamp)
 
+    def render(self, width: int, height: int) -> np.ndarray:
+        return self.sim.render(width, height)
+
     def close(self) -> None:
         for publisher in self._commands.values():
             publisher.unregister()
@@ -223,13 +243,19 @@ class RosBackend(Backend):
         self.sim.close()
 
 
-def make_backend(kind: Any, robot: RobotSpec, seed: int | None = None, timeout: float = 10.0) -> Backend:
+def make_backend(kind: Any, robot: RobotSpec, seed: int | None = None, timeout: float = 10.0,
+                 gui: bool = False) -> Backend:
     """`kind` "ros" (a sim node must be running), "direct" (an in-process World of `robot` seeded with
-    `seed`), or a Backend, returned as it is."""
+    `seed`; `gui` opens PyBullet's window), or a Backend, returned as it is."""
     if isinstance(kind, Backend):
         return kind
     if kind == "ros":
-        return RosBackend(robot, timeout=timeout)
+        backend = RosBackend(robot, timeout=timeout)
+        if gui and not backend.gui:
+            import rospy
+            rospy.logwarn("render_mode 'human' over ROS: the robot shows in the sim node's window (launch the sim with "
+                          "gui:=true) or in rviz (rviz:=true)")
+        return backend
     if kind == "direct":
-        return DirectBackend(robot.urdf_path, robot.sim_config_path, seed=seed or 0)
+        return DirectBackend(robot.urdf_path, robot.sim_config_path, seed=seed or 0, gui=gui)
     raise ValueError(f"backend must be 'ros' or 'direct', got {kind!r}")

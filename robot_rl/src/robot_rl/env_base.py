@@ -11,10 +11,19 @@ reset_world, as openai_ros does for these robots. A robot spawned above the grou
 The reward is the sum of the task's named terms, and every term is in `info` as `reward_<name>`
 (Gymnasium's hopper_v5 convention). Truncation is gymnasium's TimeLimit (registered with each task's
 max_episode_steps; `robot_rl.task.make_env` sets it to the params' nsteps), not the env's business.
+
+Rendering (gymnasium's conventions, so RecordVideo and robot_rl.video work on every task):
+render_mode "rgb_array" makes render() return the frame of the sim's camera that follows the robot
+(render_height x render_width x 3, uint8; over ROS from the sim node's ~render service, so the env
+needs no physics of its own); "human" opens PyBullet's window on the direct backend (the camera
+follows the robot, and each step waits so that sim time runs no faster than wall time); over ROS the
+sim node's window (gui:=true) or rviz (rviz:=true) shows the robot. metadata["render_fps"] is
+1 / running_step: one frame per env step.
 """
 from __future__ import annotations
 
 import abc
+import time
 from typing import Any, ClassVar, Generic, TypeVar
 
 import gymnasium
@@ -33,25 +42,35 @@ class RobotEnv(gymnasium.Env[np.ndarray, int], Generic[P], abc.ABC):
     """A task's env: subclasses set `task` and implement the hooks below."""
 
     task: ClassVar[TaskSpec[Any]]
-    metadata = {"render_modes": []}
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array", "human"]}  # + render_fps, per instance
     action_space: spaces.Discrete  # type: ignore[assignment]  # gymnasium.Env declares Space[int]
     observation_space: spaces.Box
 
     def __init__(self, backend: str | Backend = "ros", params: P | None = None, seed: int | None = None,
-                 ros_timeout: float = 10.0):
+                 ros_timeout: float = 10.0, render_mode: str | None = None, render_width: int = 320,
+                 render_height: int = 240):
         """`params`: the task's validated params (default: its config/<task>.yaml). `backend`: "ros" (a
-        running sim node), "direct" (an in-process World seeded with `seed`) or a Backend."""
+        running sim node), "direct" (an in-process World seeded with `seed`) or a Backend. `render_mode`:
+        None, "rgb_array" (frames of render_width x render_height pixels) or "human"."""
         task = self.task
         self.params: P = params if params is not None else task.default_params()
         if not isinstance(self.params, task.params_type):
             raise TypeError(f"params must be {task.params_type.__name__}, got {type(self.params).__name__}")
-        self.backend = make_backend(backend, task.robot, seed=seed, timeout=ros_timeout)
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        if not all(isinstance(v, int) and v > 0 for v in (render_width, render_height)):
+            raise ValueError(f"render_width and render_height must be positive whole pixels, got {render_width!r} and "
+                             f"{render_height!r}")
+        self.render_mode, self.render_width, self.render_height = render_mode, render_width, render_height
+        self._wall_origin: tuple[float, float] | None = None  # human mode: (wall, sim) time at the episode start
+        self.backend = make_backend(backend, task.robot, seed=seed, timeout=ros_timeout, gui=render_mode == "human")
         time_step = self.backend.time_step
         if self.params.running_step < time_step:
             self.backend.close()
             raise ValueError(f"running_step {self.params.running_step} s is shorter than one physics step "
                              f"({time_step} s)")
         self.running_step = self.params.running_step
+        self.metadata = {**self.metadata, "render_fps": 1.0 / self.running_step}
         self.physics_steps = round(self.running_step / time_step)
         self.settle_steps = round(self._settle_time() / time_step)
         self.readings: Readings | None = None
@@ -94,6 +113,9 @@ class RobotEnv(gymnasium.Env[np.ndarray, int], Generic[P], abc.ABC):
         if self.settle_steps:
             self.readings = self.backend.step(self.settle_steps)
         self._start_episode(self.readings)
+        if self.render_mode == "human":
+            self._wall_origin = None
+            self.render()
         return self._observe(self.readings), {"sim_time": self.readings.stamp}
 
     def step(self, action: int) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
@@ -109,7 +131,25 @@ class RobotEnv(gymnasium.Env[np.ndarray, int], Generic[P], abc.ABC):
         for name, value in terms.items():
             info[f"reward_{name}"] = value
         info["sim_time"] = readings.stamp
+        if self.render_mode == "human":
+            self.render()
         return observation, float(sum(terms.values())), terminated, False, info
+
+    def render(self) -> np.ndarray | None:
+        """rgb_array: the current frame; human: update the view and keep sim time no faster than wall time."""
+        if self.render_mode == "rgb_array":
+            return self.backend.render(self.render_width, self.render_height)
+        if self.render_mode == "human":
+            self.backend.show()
+            stamp, now = (self.readings.stamp if self.readings else 0.0), time.monotonic()
+            if self._wall_origin is None:
+                self._wall_origin = (now, stamp)
+            ahead = (stamp - self._wall_origin[1]) - (now - self._wall_origin[0])
+            if ahead > 0.0:
+                time.sleep(ahead)  # a person watches: sim time at most as fast as wall time
+            return None
+        gymnasium.logger.warn("render() without a render_mode: make the env with render_mode='rgb_array' or 'human'")
+        return None
 
     def close(self) -> None:
         self.backend.close()

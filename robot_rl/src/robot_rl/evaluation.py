@@ -1,12 +1,16 @@
 """Evaluate a trained run: its greedy policy, then a uniformly random one, on the run's own task.
 
   evaluate.py --qtable RUN [--episodes N] [--horizon-s S] [--backend direct|ros] [--seed S]
+              [--video PATH.mp4 [--video-episodes N] [--video-size WxH]]
 
 RUN is a run folder (training_results/<task>/<run>, or its `latest` link) or its qtable.json; the
 checkpoint names the task, the run's params.yaml gives its parameters. Each episode lasts until the
 task terminates it or `--horizon-s` seconds of sim time have passed (default: the task's). The last
 output line is one JSON object: {"task", "episodes", "horizon_s", "seed", "greedy": {...}, "random":
 {...}}, each policy with mean_return and the task's metrics (`mean_<metric>`, `<metric>_rate`).
+`--video` records the first `--video-episodes` (3) greedy episodes to an mp4 (robot_rl.video: real
+time, at most 30 frames/s, from the sim's camera that follows the robot) and adds "video": {"path",
+"episodes", "frames", "fps"} to the JSON; recording changes none of the numbers.
 The direct backend (default) needs nothing running; `--backend ros` needs the task's sim node.
 Every robot package's evaluate.py is this, for its own tasks.
 """
@@ -14,7 +18,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +33,9 @@ from .params import ParamError
 from .qlearn import QLearn
 from .results import RunDirectory, aggregate
 from .task import Episode, StateKey, TaskSpec, find_task, make_env
+from .video import VideoRecorder
+
+MAX_VIDEO_SIDE = 4096
 
 
 class TrainedRun:
@@ -53,6 +62,20 @@ class TrainedRun:
                              f"{params_file}")
 
 
+@dataclass(frozen=True)
+class VideoRequest:
+    """Record the first `episodes` greedy episodes to `path` (an .mp4), frames of width x height pixels."""
+
+    path: Path
+    episodes: int = 3
+    width: int = 320
+    height: int = 240
+
+
+def greedy_policy(run: TrainedRun) -> Callable[[np.ndarray], int]:
+    return lambda observation: run.qlearn.greedy_action(run.state_key.key(observation))
+
+
 def run_episodes(env: Any, policy: Callable[[np.ndarray], int], episodes: int, task: TaskSpec[Any],
                  running_step: float) -> dict[str, float | None]:
     """Mean return and the task's metrics of `episodes` episodes of `policy`."""
@@ -74,23 +97,40 @@ def run_episodes(env: Any, policy: Callable[[np.ndarray], int], episodes: int, t
     return {**aggregate({"return": returns}), **aggregate(metrics)}
 
 
-def evaluate(run: TrainedRun, episodes: int, horizon_s: float, backend: str, seed: int) -> dict[str, Any]:
-    """Greedy, then seeded uniformly random, `episodes` each, from a seeded first reset."""
+def evaluate(run: TrainedRun, episodes: int, horizon_s: float, backend: str, seed: int,
+             video: VideoRequest | None = None) -> dict[str, Any]:
+    """Greedy, then seeded uniformly random, `episodes` each, from a seeded first reset; `video` records
+    the first greedy episodes."""
     steps = max(1, round(horizon_s / run.params.running_step))
-    env = make_env(run.task, params=run.params, backend=backend, seed=seed, max_episode_steps=steps)
+    rendering = {} if video is None else {"render_mode": "rgb_array", "render_width": video.width,
+                                          "render_height": video.height}
+    env = make_env(run.task, params=run.params, backend=backend, seed=seed, max_episode_steps=steps, **rendering)
+    recorder = None if video is None else VideoRecorder(env, video.path, video.episodes)
     run.qlearn.rng.seed(seed)
     rng = np.random.default_rng(seed)
     n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
     try:
         env.reset(seed=seed)
-        greedy = run_episodes(env, lambda obs: run.qlearn.greedy_action(run.state_key.key(obs)), episodes,
-                              run.task, run.params.running_step)
+        greedy = run_episodes(recorder or env, greedy_policy(run), episodes, run.task, run.params.running_step)
         random_policy = run_episodes(env, lambda obs: int(rng.integers(n_actions)), episodes, run.task,
                                      run.params.running_step)
     finally:
-        env.close()
-    return {"task": run.task.env_id, "episodes": episodes, "horizon_s": steps * run.params.running_step,
-            "seed": seed, "greedy": greedy, "random": random_policy}
+        (recorder or env).close()
+    report = {"task": run.task.env_id, "episodes": episodes, "horizon_s": steps * run.params.running_step,
+              "seed": seed, "greedy": greedy, "random": random_policy}
+    if recorder is not None:
+        report["video"] = {"path": str(recorder.path), "episodes": recorder.episodes_recorded,
+                           "frames": recorder.frames, "fps": recorder.fps}
+    return report
+
+
+def video_size(text: str) -> tuple[int, int]:
+    """WxH (even numbers of pixels, H.264's rule) from the command line."""
+    match = re.fullmatch(r"(\d+)x(\d+)", text)
+    if not match or not all(0 < int(v) <= MAX_VIDEO_SIDE and int(v) % 2 == 0 for v in match.groups()):
+        raise argparse.ArgumentTypeError(f"{text!r} is not WIDTHxHEIGHT in even pixels from 2 to {MAX_VIDEO_SIDE}, "
+                                         f"e.g. 320x240")
+    return int(match[1]), int(match[2])
 
 
 def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
@@ -101,11 +141,23 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str) ->
     parser.add_argument("--backend", choices=("direct", "ros"), default="direct",
                         help="direct: an in-process sim (default); ros: the running sim node")
     parser.add_argument("--seed", type=int, default=0, help="seeds the sim, the random policy and tie breaks")
+    parser.add_argument("--video", type=Path, help="record the first greedy episodes to this .mp4 file")
+    parser.add_argument("--video-episodes", type=int, default=3, help="greedy episodes in the video (default 3)")
+    parser.add_argument("--video-size", type=video_size, default=(320, 240), help="frame size WxH (default 320x240)")
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error("--episodes must be >= 1")
     if args.horizon_s is not None and not args.horizon_s > 0.0:
         parser.error("--horizon-s must be > 0")
+    video = None
+    if args.video is not None:
+        if args.video.suffix != ".mp4":
+            parser.error(f"--video must name an .mp4 file, got {str(args.video)!r}")
+        if not args.video.parent.is_dir():
+            parser.error(f"--video: the folder {str(args.video.parent)!r} does not exist")
+        if not 1 <= args.video_episodes <= args.episodes:
+            parser.error(f"--video-episodes must be from 1 to --episodes ({args.episodes}), got {args.video_episodes}")
+        video = VideoRequest(args.video, args.video_episodes, *args.video_size)
     try:
         run = TrainedRun(args.qtable, tasks)
     except (OSError, ParamError, ValueError) as error:
@@ -118,7 +170,7 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str) ->
             parser.exit(1, f"evaluate.py: {error}\n")
     horizon_s = args.horizon_s if args.horizon_s is not None else run.task.eval_horizon_s
     try:
-        report = evaluate(run, args.episodes, horizon_s, args.backend, args.seed)
+        report = evaluate(run, args.episodes, horizon_s, args.backend, args.seed, video)
     except SimConnectionError as error:
         parser.exit(1, f"evaluate.py: {error}\n")
     print(json.dumps(report))

@@ -1,7 +1,8 @@
 """Training results on disk: <root>/<results name>/<run>/ plus a <root>/<results name>/latest symlink.
 
-A run directory holds params.yaml, episodes.csv, qtable.json (checkpoint), learning_curve.png and
-summary.json. Everything except the append-only episodes.csv is written atomically; no pickle.
+A run directory holds params.yaml, episodes.csv, qtable.json (checkpoint), learning_curve.png,
+summary.json and, once trained, video.mp4 (the greedy policy). Everything except the append-only
+episodes.csv is written atomically; no pickle.
 episodes.csv has the columns of every task (COLUMNS) followed by the task's own metrics.
 """
 from __future__ import annotations
@@ -93,6 +94,10 @@ class RunDirectory:
     @property
     def learning_curve_png(self) -> Path:
         return self.path / "learning_curve.png"
+
+    @property
+    def video_mp4(self) -> Path:
+        return self.path / "video.mp4"
 
     @property
     def summary_json(self) -> Path:

@@ -5,7 +5,9 @@ from the parameter server (one line naming the key and the file, before anything
 makes the env over ROS, opens a new run or the latest one to resume, trains, and publishes the
 rewards. Private params: ~task, ~config_file (named in errors), ~results_dir (default
 $ROS_HOME/training_results), ~resume, ~nepisodes (optional override), ~timeout (s, every wait on
-the sim), ~quiet (the per-episode "EP:" lines go to the debug log level).
+the sim), ~quiet (the per-episode "EP:" lines go to the debug log level), ~video (default true:
+once trained, video.mp4 next to learning_curve.png shows one greedy episode of the final Q-table,
+at most TRAINING_VIDEO_S of sim time, rendered on the direct backend so that the ROS sim is not needed).
 
 SIGINT or SIGTERM (Ctrl-C, roslaunch shutting down) stops the run cleanly: the episode under way is
 abandoned, a checkpoint and summary.json (marked incomplete) are written, and the node exits 130.
@@ -13,7 +15,9 @@ Exit codes: 0 trained, 1 failed (one FATAL line says why), 130 interrupted.
 """
 from __future__ import annotations
 
+import os
 import signal
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -24,12 +28,14 @@ from std_msgs.msg import Float64
 
 from pybullet_sim.client import SimConnectionError
 
+from .evaluation import TrainedRun, VideoRequest, evaluate
 from .params import ParamError, TaskParams, load_yaml_file
 from .results import RunDirectory
 from .task import TaskSpec, find_task, make_env
 from .training import QLearningTrainer
 
 INTERRUPTED = 130  # the shell's code for a command ended by SIGINT
+TRAINING_VIDEO_S = 10.0  # sim seconds at most in a training run's video
 
 
 def _fail(message: str) -> int:
@@ -73,6 +79,19 @@ def _close_quietly(env: Any) -> None:
         env.close()
     except (SimConnectionError, rospy.ROSException):
         pass
+
+
+def _write_video(tasks: Sequence[TaskSpec[Any]], task: TaskSpec[Any], run: RunDirectory, seed: int) -> None:
+    """video.mp4: one greedy episode of the run's final Q-table, as evaluate.py --video records it."""
+    start = time.monotonic()
+    partial = run.path / "video.partial.mp4"  # renamed when complete: video.mp4 is whole or absent
+    report = evaluate(TrainedRun(run.path, tasks), episodes=1, horizon_s=min(task.eval_horizon_s, TRAINING_VIDEO_S),
+                      backend="direct", seed=seed, video=VideoRequest(partial, episodes=1))
+    os.replace(partial, run.video_mp4)
+    metrics = ", ".join(f"{name} {value:.3g}" for name, value in report["greedy"].items() if value is not None)
+    rospy.loginfo("Video of the greedy policy: %s (%d frames at %.1f frames/s: one episode of at most %.1f s of sim "
+                  "time, made in %.1f s; %s)", run.video_mp4, report["video"]["frames"], report["video"]["fps"],
+                  report["horizon_s"], time.monotonic() - start, metrics)
 
 
 def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
@@ -125,4 +144,9 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     rospy.loginfo("Training complete: %d episodes, %d env steps in %.1f s (%.0f steps/s). Results: %s",
                   summary["episodes"], summary["env_steps"], summary["wall_time_s"], summary["env_steps_per_s"] or 0.0,
                   run.path)
+    if rospy.get_param("~video", True):
+        try:
+            _write_video(tasks, task, run, params.seed)
+        except (OSError, ValueError, RuntimeError) as error:
+            return _fail(f"the run is saved in {run.path}, but its video could not be written: {error}")
     return 0

@@ -1,0 +1,83 @@
+"""Videos of episodes: a gymnasium wrapper that writes an env's rgb_array frames to an mp4 (H.264 through
+imageio's ffmpeg plugin; imageio-ffmpeg ships the ffmpeg binary).
+
+Like gymnasium's RecordVideo, it takes a frame after each reset and after steps, but it keeps the video
+in real time at a frame rate a player handles: one frame every `frame_every` steps, the fewest that
+keep render_fps / frame_every at most MAX_FPS. The cube (a step of 0.06 s of sim time) gets every step
+at 16.7 frames/s; the hopper (1 ms steps, render_fps 1000) every 34th step at 29.4 frames/s. An
+episode of n steps thus gives 1 + n // frame_every frames. Only the first `episodes` episodes after
+the wrapper is made are recorded; the file is complete once the wrapper is closed.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+import numpy as np
+
+MAX_FPS = 30.0
+
+
+def frame_every(render_fps: float, max_fps: float = MAX_FPS) -> int:
+    """Steps per video frame: the fewest that keep the video at most `max_fps` frames per second."""
+    return max(1, math.ceil(render_fps / max_fps - 1e-9))
+
+
+class VideoRecorder(gymnasium.Wrapper[Any, Any, Any, Any]):
+    """Records the first `episodes` episodes (all if None) of an env made with render_mode="rgb_array"."""
+
+    def __init__(self, env: gymnasium.Env[Any, Any], path: str | Path, episodes: int | None = None,
+                 max_fps: float = MAX_FPS):
+        super().__init__(env)
+        if env.render_mode != "rgb_array":
+            raise ValueError(f"recording a video needs an env made with render_mode='rgb_array', not "
+                             f"{env.render_mode!r}")
+        render_fps = float(env.metadata["render_fps"])
+        self.path = Path(path)
+        self.episodes = episodes
+        self.frame_every = frame_every(render_fps, max_fps)
+        self.fps = render_fps / self.frame_every
+        self.frames = 0                  # written so far
+        self.episodes_recorded = 0       # started while recording
+        self._steps = 0
+        self._recording = False
+        self._writer: Any = None
+
+    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
+        result = super().reset(**kwargs)
+        self._recording = self.episodes is None or self.episodes_recorded < self.episodes
+        if self._recording:
+            self.episodes_recorded += 1
+            self._steps = 0
+            self._write_frame()
+        return result
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        result = super().step(action)
+        if self._recording:
+            self._steps += 1
+            if self._steps % self.frame_every == 0:
+                self._write_frame()
+        return result  # type: ignore[return-value]  # the wrapped env's 5-tuple
+
+    def _write_frame(self) -> None:
+        frame = self.env.render()
+        if not (isinstance(frame, np.ndarray) and frame.ndim == 3 and frame.shape[2] == 3 and frame.dtype == np.uint8):
+            raise ValueError(f"render() must return an HxWx3 uint8 array, got {type(frame).__name__} "
+                             f"{getattr(frame, 'shape', '')}")
+        if self._writer is None:
+            import imageio.v2 as imageio
+            # macro_block_size=2: H.264 (yuv420p) needs even sides; any even size is written as it is.
+            self._writer = imageio.get_writer(self.path, format="FFMPEG", mode="I", fps=self.fps, codec="libx264",
+                                              pixelformat="yuv420p", macro_block_size=2, ffmpeg_log_level="error")
+        self._writer.append_data(frame)
+        self.frames += 1
+
+    def close(self) -> None:
+        """Finish the video file, then close the env."""
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
+        super().close()

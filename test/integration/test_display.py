@@ -1,0 +1,91 @@
+"""What needs a display, on Xvfb (Debian's, installed by ./ws test): each robot's saved rviz config loads
+without errors and its screenshot shows the robot; render_mode="human" opens PyBullet's window, shows
+the robot and runs no faster than real time. Screenshots are kept in the test's tmp_path."""
+import json
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import ImageGrab
+
+from conftest import Processes, launch_args
+
+HUMAN = Path(__file__).with_name("human_render.py")
+# Debian's rviz asks rospack for the media_export package (not packaged in Debian) and says so on every
+# start; nothing else in an rviz log may say error.
+DEBIAN_RVIZ_NOISE = ("[rospack] Error: no such package media_export", "[librospack]: error while executing command")
+SHOW_ROBOT_TIMEOUT = 120.0  # wall s: rviz starts on a software OpenGL (llvmpipe) on 2 busy cores
+
+
+def colour_counts(image: np.ndarray) -> dict:
+    """Pixels of the robots' colours (see test/unit/test_rendering.py) and of the contact force arrow
+    (orange); rviz's background is light grey, the odometry arrows green."""
+    r, g, b = (image[..., i].astype(int) for i in range(3))
+    return {"red": int(((r > 120) & (g < 60) & (b < 60)).sum()), "dark": int((image.max(axis=2) < 60).sum()),
+            "blue": int(((b > 100) & (r < 80) & (g < 100)).sum()),
+            "orange": int(((r > 200) & (g > 90) & (g < 190) & (b < 70)).sum())}
+
+
+def subscribed(master, node: str, topic: str) -> bool:
+    _, subscribers, _ = master.params.getSystemState()
+    return node in dict(subscribers).get(topic, [])
+
+
+@pytest.mark.parametrize("robot, contact_topic, wanted", [
+    ("cube", "/clock", {"red": 1500, "dark": 1500}),  # no contact sensor: contact_markers only listens to /clock
+    ("hopper", "/lowerleg_contactsensor_state", {"red": 800, "blue": 200, "orange": 150})])
+def test_rviz_config_loads_without_errors_and_shows_the_robot(ros_master, xvfb, tmp_path, robot, contact_topic,
+                                                               wanted):
+    ros_master.env["DISPLAY"] = xvfb
+    log = tmp_path / "roslaunch.log"
+    with open(log, "w") as out:
+        launch = ros_master.start(["roslaunch", "pybullet_sim", f"{robot}_sim.launch", *launch_args(rviz="true")],
+                                  stdout=out, stderr=subprocess.STDOUT)
+    # Paused, the sim publishes only when stepped: once rviz and contact_markers listen, 0.15 s of sim
+    # time lands the robot (the monoped on its foot, which then feels the ground), then a step of 1 ms
+    # per look publishes it again until rviz shows it (a subscriber connects a little after it registers).
+    deadline = time.monotonic() + SHOW_ROBOT_TIMEOUT
+    while not (subscribed(ros_master, "/rviz", "/tf") and subscribed(ros_master, "/contact_markers", contact_topic)):
+        assert launch.poll() is None and time.monotonic() < deadline, \
+            f"rviz and contact_markers did not start within {SHOW_ROBOT_TIMEOUT} s:\n{log.read_text()[-3000:]}"
+        time.sleep(0.2)  # bounded poll of the master
+    screenshot, steps = tmp_path / f"rviz_{robot}.png", 150
+    while True:  # bounded: rviz has no "drawn" signal; a screenshot shows when the robot is there
+        step = ros_master.run(["rosservice", "call", "/pybullet_sim/step",
+                               f"{{steps: {steps}, command_topics: [], command_counts: []}}"], timeout=60)
+        assert step.returncode == 0, step.stdout + step.stderr
+        steps = 1
+        image = np.asarray(ImageGrab.grab(xdisplay=xvfb))
+        counts = colour_counts(image)
+        if all(counts[colour] >= n for colour, n in wanted.items()):
+            break
+        if launch.poll() is not None or time.monotonic() > deadline:
+            ImageGrab.Image.fromarray(image).save(screenshot)
+            raise AssertionError(f"rviz did not show the {robot} within {SHOW_ROBOT_TIMEOUT} s ({counts}, wanted "
+                                 f"{wanted}); see {screenshot} and {log}:\n{log.read_text()[-3000:]}")
+    ImageGrab.Image.fromarray(image).save(screenshot)
+    output = log.read_text()
+    assert launch.poll() is None and "has died" not in output, output[-3000:]
+    errors = [line for line in output.splitlines()
+              if re.search(r"error|fatal", line, re.I) and not line.startswith(DEBIAN_RVIZ_NOISE)]
+    assert errors == [], f"rviz or a node logged errors (screenshot {screenshot}):\n" + "\n".join(errors)
+    assert "process[rviz-" in output and "process[contact_markers-" in output
+
+
+def test_human_mode_shows_pybullets_window_in_real_time(xvfb, tmp_path):
+    runner = Processes(tmp_path, DISPLAY=xvfb)
+    screenshot = tmp_path / "human.png"
+    try:
+        result = runner.run([sys.executable, str(HUMAN), str(screenshot)], timeout=180)
+    finally:
+        runner.close()
+    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-3000:]
+    report = json.loads(result.stdout.strip().splitlines()[-1])
+    assert report["warnings"] == [], "gymnasium's env checker (with its render checks) complained"
+    assert report["render_returned"] == ["None"], "render() returns nothing in human mode"
+    assert report["wall_s"] >= report["sim_s"], "human mode must not run faster than real time"
+    assert report["red"] > 1000 and report["dark"] > 1000, f"the window should show the cube ({report}, {screenshot})"
