@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """Run by hopper_sim_node.py as its own process and ROS node, with a fresh env: gymnasium's check_env
 over ROS, then a seeded episode of 200 fixed actions over ROS must give exactly the observations of
 the direct backend (an in-process World with the sim launch's seed 0). Prints one line per check."""

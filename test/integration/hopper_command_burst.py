@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """Run by hopper_sim_node.py as its own process (own caller id, so the test node's lockstep counts
 stay intact): what the env does around a reset (the init pose, then the first action, with no step
 in between), as it happens on a loaded machine.

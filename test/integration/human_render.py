@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """Run by test_display.py with DISPLAY on an Xvfb: gymnasium's env checker with its render checks (it
 makes an env of each render mode in turn; "human" opens PyBullet's window, one at a time per process),
 then human-mode steps of the cube, which run no faster than real time, and a screenshot of the window

@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """Start the longest lockstep call the sim takes, time the other services meanwhile, then stop the sim.
 
 Usage: long_step_client.py LAUNCH_PGID. Spins the cube's wheel to its 1000 rad/s limit first (the slowest

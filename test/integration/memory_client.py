@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """Run by test_faults.py: 10,000 resets and 100,000 one-physics-step lockstep steps of the cube over ROS,
 after a warm-up; prints the growth of the sim node's (pid as argument) and this client's resident memory."""
 import json

@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """Drive the cube sim in lockstep with a fixed command sequence and print its odom stream as JSON.
 
 Used by the determinism tests: two fresh sims with the same ~seed must print the same stream."""

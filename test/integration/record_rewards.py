@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """Record /monoped/reward and /monoped/episode_reward as node reward_recorder: one
 "<reward|episode_reward> <repr(value)>" line per message on stdout, until ended."""
 import sys

@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """Run by test_rendering_over_ros.py as its own ROS node, against a running sim (seed 0): the same seeded
 episode over ROS and on the direct backend must render the same frames (over ROS they come from the
 sim node's ~render service), before and after the robot moves; a bad size is one clear error. With
@@ -7,6 +6,7 @@ import argparse
 import json
 import threading
 import time
+from typing import Any
 
 import numpy as np
 import rospy
@@ -56,7 +56,8 @@ def main() -> None:
             moved, moved_time = timed_render(env)
             frames[name], seconds[name] = (start, moved), (start_time + moved_time) / 2
         try:
-            envs["ros"].unwrapped.backend.render(5000, 10)
+            ros_env: Any = envs["ros"].unwrapped
+            ros_env.backend.render(5000, 10)
             bad_size = "no error"
         except SimConnectionError as error:
             bad_size = str(error)

@@ -5,8 +5,8 @@ the sim node's parameters (/pybullet_sim), so it knows no robot: for every senso
 subscribes to its ContactsState topic and publishes on /pybullet_sim/contact_markers an arrow of the
 total force on the sensor's link (the ground pushing on the hopper's foot), at most ~rate times per
 wall second. The arrow starts at the link's origin when the sensor reports in the link's frame (as
-the hopper's does), else at the mean contact position; it is ~meters_per_newton long per newton (the monoped standing: 7 N, 0.35 m), at
-most ~max_length, and removed while the link touches nothing.
+the hopper's does), else at the mean contact position; it is ~meters_per_newton long per newton (the
+monoped standing: 7 N, 0.35 m), at most ~max_length, and removed while the link touches nothing.
 
 Private params: ~meters_per_newton (0.05), ~max_length (1.0 m), ~rate (30 Hz).
 """
