@@ -12,7 +12,7 @@ from tf.transformations import euler_from_quaternion, quaternion_from_euler
 from hopper_training.hop import HOP, HopParams, MonopedHopEnv
 from hopper_training.monoped_env import CONTROLLERS, JOINT_LIMITS, JOINTS, MONOPED, STAY_UP, MonopedEnv
 from hopper_training.params import MonopedParams
-from hopper_training.state import TutorialStateKey
+from hopper_training.state import TiltStateKey, TutorialStateKey, monoped_state_key
 from pybullet_sim.readings import ContactPoint, ContactReading, ImuReading, JointStateReading, OdometryReading
 from robot_rl.backends import DirectBackend, Readings
 from robot_rl.params import ParamError, Point
@@ -30,7 +30,8 @@ def foot_contact(force=(0.0, 0.0, 7.08)):
 
 
 def readings(position=(0.0, 0.0, 1.0), rpy=(0.0, 0.0, 0.0), joints=(0.0, 0.0, 0.0), effort=(0.0, 0.0, 0.0),
-             total_force=(0.0, 0.0, 0.0), contacts=None, odom_rpy=(0.0, 0.0, 0.0), stamp=0.0, names=JOINTS):
+             total_force=(0.0, 0.0, 0.0), contacts=None, odom_rpy=(0.0, 0.0, 0.0), stamp=0.0, names=JOINTS,
+             rates=(0.0, 0.0, 0.0)):
     """Hand-made Readings as the sim publishes them; `contacts` None = one contact iff total_force != 0."""
     if contacts is None:
         contacts = (foot_contact(total_force),) if any(total_force) else ()
@@ -41,7 +42,7 @@ def readings(position=(0.0, 0.0, 1.0), rpy=(0.0, 0.0, 0.0), joints=(0.0, 0.0, 0.
         {"p3d_base_controller": OdometryReading(stamp, "world", "base", tuple(position),
                                                 tuple(quaternion_from_euler(*odom_rpy)), (0.0,) * 3, (0.0,) * 3),
          "gazebo_ros_imu_controller": ImuReading(stamp, "base", tuple(quaternion_from_euler(*rpy)),
-                                                 (0.0,) * 3, (0.0, 0.0, 9.81)),
+                                                 tuple(rates), (0.0, 0.0, 9.81)),
          "lowerleg_contactsensor_sensor": ContactReading(stamp, "lowerleg_contactsensor_link", tuple(contacts),
                                                          tuple(total_force), (0.0, 0.0, 0.0))})
 
@@ -70,7 +71,7 @@ def terms(info):
 # -- rewards --------------------------------------------------------------------------------------
 # A leaning, displaced robot with bent joints, efforts and a 5 N contact.
 LEANING = dict(position=(0.3, 0.4, 1.0), rpy=(0.1, -0.2, 0.3), joints=(0.1, -0.2, -0.3),
-               effort=(1.0, -2.0, 3.0), total_force=(3.0, 4.0, 0.0))
+               effort=(1.0, -2.0, 3.0), total_force=(3.0, 4.0, 0.0), rates=(0.05, -0.5, 0.7))
 
 
 def test_each_reward_term_with_the_yaml_weights():
@@ -175,15 +176,44 @@ def test_inclination_with_the_yaml_max_incl(rpy, done):
 
 
 # -- observations and the tutorial's state key ----------------------------------------------------
-def test_observations_in_the_tutorial_order():
+def test_observations_in_the_tutorial_order_then_the_tilt_rates():
     observation, *_ = env_on(readings(**LEANING)).step(0)
-    assert observation.dtype == np.float32 and observation.shape == (8,)
-    # distance, roll, pitch, yaw, contact force, haa, hfe, kfe
-    assert observation.tolist() == pytest.approx([0.5, 0.1, -0.2, 0.3, 5.0, 0.1, -0.2, -0.3], abs=1e-6)
+    assert observation.dtype == np.float32 and observation.shape == (10,)
+    # distance, roll, pitch, yaw, contact force, haa, hfe, kfe, roll rate, pitch rate
+    assert observation.tolist() == pytest.approx([0.5, 0.1, -0.2, 0.3, 5.0, 0.1, -0.2, -0.3, 0.05, -0.5], abs=1e-6)
 
 
 def tutorial_key(obs, **overrides):
     return TutorialStateKey(params(**overrides)).key(np.array(obs, dtype=float))
+
+
+def tilt_key(roll=0.0, pitch=0.0, roll_rate=0.0, pitch_rate=0.0, force=0.0, kfe=0.0):
+    observation = np.array([0.0, roll, pitch, 0.0, force, 0.0, 0.0, kfe, roll_rate, pitch_rate], dtype=np.float32)
+    return TiltStateKey(params()).key(observation)
+
+
+def test_tilt_key_tells_forward_from_backward():
+    assert tilt_key(pitch=0.01) != tilt_key(pitch=-0.01)
+    assert tilt_key(pitch=0.01, pitch_rate=0.1) != tilt_key(pitch=-0.01, pitch_rate=0.1)
+
+
+def test_tilt_key_bins_tilt_and_rate_by_decades_and_sees_knee_and_contact():
+    # sign of pitch, tilt decade (edges 1e-6 .. 0.1), rate decade (edges 1e-6 .. 1), knee, contact
+    assert tilt_key() == "1_0_0_2_0"
+    assert tilt_key(roll=3e-4, pitch=-2e-5) == "0_3_0_2_0"          # the larger of abs(roll), abs(pitch)
+    assert tilt_key(roll_rate=-0.02, pitch_rate=0.5) == "1_0_6_2_0"  # the larger of the abs rates
+    assert tilt_key(kfe=-0.1) == "1_0_0_1_0" and tilt_key(kfe=-0.5) == "1_0_0_0_0"
+    assert tilt_key(force=7.0) == "1_0_0_2_1"
+
+
+def test_tilt_key_puts_values_beyond_the_bins_in_the_edge_bins():
+    assert tilt_key(pitch=1.2, pitch_rate=40.0) == tilt_key(pitch=0.3, pitch_rate=2.0) == "1_6_7_2_0"
+    assert tilt_key(pitch=1e-12, pitch_rate=-1e-12) == tilt_key(pitch=2e-9) == "1_0_0_2_0"
+
+
+def test_the_params_choose_the_key():
+    assert isinstance(monoped_state_key(params()), TiltStateKey)
+    assert isinstance(monoped_state_key(params(state_key="tutorial")), TutorialStateKey)
 
 
 def test_state_key_of_the_upright_robot_at_rest_in_the_air():
@@ -272,7 +302,7 @@ def test_reset_commands_every_joint_to_zero_and_a_step_is_one_physics_step():
     assert backend.resets == [True]
     assert backend.commands == list(zip(CONTROLLERS, (0.0, 0.0, 0.0)))
     env.step(0)
-    assert backend.steps == [1]  # running_step 0.001 s of 1 ms physics steps
+    assert backend.steps == [20]  # running_step 0.02 s of 1 ms physics steps
     env.reset()
     assert backend.resets == [True, False]  # an unseeded reset is reset_world
 
@@ -295,7 +325,8 @@ def param_error(values):
 
 def test_the_yaml_is_valid_and_keeps_the_tutorial_values():
     p = STAY_UP.default_params()
-    assert (p.alpha, p.gamma, p.epsilon, p.nsteps) == (0.1, 0.8, 0.9, 1000)
+    assert (p.epsilon, p.joint_increment_value, p.alive_reward, p.done_reward) == (0.9, 0.05, 100.0, -1000.0)
+    assert (p.max_height, p.min_height, p.max_incl, p.desired_force) == (3.0, 0.5, 1.57, 7.08)
     assert p.desired_pose == Point(x=0.0, y=0.0, z=1.0)
     assert [p.weight_r1, p.weight_r2, p.weight_r3, p.weight_r4, p.weight_r5] == [1.0, 0.0, 1.0, 1.0, 1.0]
 
@@ -358,7 +389,8 @@ def test_hop_params_add_the_forward_weight():
 
 # -- the env on the direct backend ----------------------------------------------------------------
 def test_direct_observations_are_float32_in_the_space_in_the_tutorial_order():
-    env = gymnasium.make(STAY_UP.env_id, backend="direct").unwrapped
+    """At the tutorial's 1 ms steps: 200 steps of these actions keep the monoped up."""
+    env = gymnasium.make(STAY_UP.env_id, backend="direct", params=params(running_step=0.001)).unwrapped
     try:
         observation, _ = env.reset(seed=0)
         actions = [3, 3, 5, 5, 0, 2, 4, 1] * 25
@@ -373,9 +405,9 @@ def test_direct_observations_are_float32_in_the_space_in_the_tutorial_order():
             contact = r.sensors["lowerleg_contactsensor_sensor"]
             force = float(np.linalg.norm(contact.total_force)) if contact.contacts else 0.0
             touched = touched or force > 0.0
-            expected = [math.dist(odom.position, (0.0, 0.0, 1.0)),
-                        *euler_from_quaternion(r.sensors["gazebo_ros_imu_controller"].orientation),
-                        force, *r.joints.position]
+            imu = r.sensors["gazebo_ros_imu_controller"]
+            expected = [math.dist(odom.position, (0.0, 0.0, 1.0)), *euler_from_quaternion(imu.orientation),
+                        force, *r.joints.position, *imu.angular_velocity[:2]]
             assert observation.tolist() == pytest.approx(expected, abs=1e-5)
         assert touched, "the foot should reach the ground (spawned 5 cm above it) within 0.2 s"
     finally:

@@ -27,7 +27,7 @@ from robot_rl.task import TaskSpec
 
 from .monoped_env import MONOPED, ODOMETRY_SENSOR, MonopedEnv, monoped_metrics
 from .params import MonopedParams
-from .state import TutorialStateKey
+from .state import monoped_state_key
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -37,9 +37,9 @@ class HopParams(MonopedParams):
 
 HOP = TaskSpec(
     name="hop", env_id="MonopedHop-v0", entry_point=f"{__name__}:MonopedHopEnv", package="hopper_training",
-    robot=MONOPED, params_type=HopParams, params_namespace="/", state_key=TutorialStateKey,
+    robot=MONOPED, params_type=HopParams, params_namespace="/", state_key=monoped_state_key,
     results_name="monoped_hop", reward_topic="/monoped/reward", episode_reward_topic="/monoped/episode_reward",
-    publish_cumulated_reward=True, max_episode_steps=1000, metrics=monoped_metrics, headline_metric="x_distance",
+    publish_cumulated_reward=True, max_episode_steps=500, metrics=monoped_metrics, headline_metric="x_distance",
     eval_horizon_s=10.0)
 
 

@@ -6,11 +6,18 @@ Actions: Discrete(6)
     4/5  kfe target +/- joint_increment_value
     From the current joint positions, clamped to the URDF limits; the other two joints are commanded
     to stay where they are.
-Observation: Box(8,), float32 (the tutorial's order)
+Observation: Box(10,), float32 (the tutorial's 8 in its order, then the tilt rates)
     0  distance of the base from desired_pose (m)
     1  roll, 2 pitch, 3 yaw of the base (rad, from the IMU)
     4  foot contact force (N, 0 in the air)
     5  haa, 6 hfe, 7 kfe positions (rad)
+    8  roll rate, 9 pitch rate (rad/s: the IMU's angular velocity about the base's x and y axes)
+State key (Q-learning; the params' state_key)
+    tilt      (config/stay_up.yaml) forward or backward (the sign of pitch), how far the base leans
+              (max(abs(roll), abs(pitch)) in decades, 1e-6 .. 0.1 rad), how fast (max of the abs tilt
+              rates in decades, 1e-6 .. 1 rad/s), the knee (edges -0.3, -0.02 rad) and the foot's contact
+              (force > 0): 2 x 7 x 8 x 3 x 2 keys (hopper_training/state.py: TiltStateKey)
+    tutorial  the tutorial's: observations 0-7 in 10 linspace bins each (TutorialStateKey)
 Reward: the sum of the terms, each in info as reward_<term>
     alive           alive_reward
     joint_position  -weight_r1 * sum of abs(joint positions)
@@ -20,7 +27,7 @@ Reward: the sum of the terms, each in info as reward_<term>
     distance        -weight_r5 * distance from desired_pose
     fall            done_reward, alone, on the step that ends the episode by a fall
 Terminated: base height outside [min_height, max_height), or abs(roll) or abs(pitch) >= max_incl.
-Truncated: after nsteps steps (gymnasium's TimeLimit; registered with 1000).
+Truncated: after nsteps steps (gymnasium's TimeLimit; registered with 500: 10 s at 20 ms).
 Step: the three joint targets are published and the sim advances running_step of sim time, in lockstep.
 Info: fell, base_height (m), x_travelled (m of the base along +x since the episode started), the reward
     terms, sim_time.
@@ -49,7 +56,7 @@ from robot_rl.env_base import RobotEnv, StepOutcome
 from robot_rl.task import Episode, MetricValue, RobotSpec, TaskSpec
 
 from .params import MonopedParams
-from .state import TutorialStateKey
+from .state import monoped_state_key
 
 CONTROLLERS = ("haa_joint_position_controller", "hfe_joint_position_controller", "kfe_joint_position_controller")
 JOINTS = ("haa_joint", "hfe_joint", "kfe_joint")
@@ -70,9 +77,9 @@ def monoped_metrics(episode: Episode) -> dict[str, MetricValue]:
 
 STAY_UP = TaskSpec(
     name="stay_up", env_id="Monoped-v0", entry_point=f"{__name__}:MonopedEnv", package="hopper_training",
-    robot=MONOPED, params_type=MonopedParams, params_namespace="/", state_key=TutorialStateKey,
+    robot=MONOPED, params_type=MonopedParams, params_namespace="/", state_key=monoped_state_key,
     results_name="monoped", reward_topic="/monoped/reward", episode_reward_topic="/monoped/episode_reward",
-    publish_cumulated_reward=True, max_episode_steps=1000, metrics=monoped_metrics,
+    publish_cumulated_reward=True, max_episode_steps=500, metrics=monoped_metrics,
     headline_metric="time_upright_s", eval_horizon_s=10.0)
 
 
@@ -98,7 +105,8 @@ class MonopedEnv(RobotEnv[MonopedParams]):
     task: ClassVar[TaskSpec[Any]] = STAY_UP
 
     def _spaces(self) -> tuple[spaces.Discrete, spaces.Box]:
-        high = np.array([np.inf, math.pi, math.pi / 2, math.pi, np.inf, math.pi, math.pi, math.pi], dtype=np.float32)
+        high = np.array([np.inf, math.pi, math.pi / 2, math.pi, np.inf, math.pi, math.pi, math.pi, np.inf, np.inf],
+                        dtype=np.float32)
         low = -high
         low[[0, 4]] = 0.0
         return spaces.Discrete(2 * len(JOINTS)), spaces.Box(low, high, dtype=np.float32)
@@ -119,8 +127,9 @@ class MonopedEnv(RobotEnv[MonopedParams]):
             self.backend.set_command(controller, target)
 
     def _observe(self, readings: Readings) -> np.ndarray:
+        roll_rate, pitch_rate, _ = readings.imu(IMU_SENSOR).angular_velocity
         return np.array([self._distance_from_desired_pose(readings), *base_rpy(readings), contact_force(readings),
-                         *joint_positions(readings)], dtype=np.float32)
+                         *joint_positions(readings), roll_rate, pitch_rate], dtype=np.float32)
 
     def _distance_from_desired_pose(self, readings: Readings) -> float:
         desired = self.params.desired_pose

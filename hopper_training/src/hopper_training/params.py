@@ -26,6 +26,8 @@ class MonopedParams(TaskParams):
     weight_r3: float = param(doc="penalty weight of | |contact force| - desired_force |")
     weight_r4: float = param(doc="penalty weight of |roll| + |pitch| + |yaw - desired_yaw|")
     weight_r5: float = param(doc="penalty weight of the distance from desired_pose")
+    state_key: str = param(choices=("tilt", "tutorial"), default="tutorial",
+                           doc="the Q-learning state key: tilt (TiltStateKey) or the tutorial's 10 bins")
 
     def check(self, source: str) -> None:
         if not self.min_height < self.max_height:

@@ -16,16 +16,15 @@ FORMAT = "robot_rl.discretiser/1"
 
 class Discretiser:
     """Per-dimension edges numpy.linspace(low[i], high[i], bins[i]) (or explicit, see from_edges);
-    indices run 0..bins[i]."""
+    a dimension with n edges has bin indices 0..n."""
 
     def __init__(self, low: Sequence[float], high: Sequence[float], bins: int | Sequence[int],
                  indices: Sequence[int] | None = None) -> None:
-        self.low = [float(v) for v in low]
-        self.high = [float(v) for v in high]
-        n = len(self.low)
-        if n == 0 or len(self.high) != n:
-            raise ValueError(f"low and high need the same non-zero length, got {n} and {len(self.high)}")
-        for i, (lo, hi) in enumerate(zip(self.low, self.high)):
+        lows, highs = [float(v) for v in low], [float(v) for v in high]
+        n = len(lows)
+        if n == 0 or len(highs) != n:
+            raise ValueError(f"low and high need the same non-zero length, got {n} and {len(highs)}")
+        for i, (lo, hi) in enumerate(zip(lows, highs)):
             if not lo < hi:  # also rejects NaN
                 raise ValueError(f"dimension {i}: need low < high, got low={lo}, high={hi}")
         bins_list = [bins] * n if isinstance(bins, (int, np.integer)) else list(bins)
@@ -34,23 +33,25 @@ class Discretiser:
         for i, b in enumerate(bins_list):
             if isinstance(b, bool) or not isinstance(b, (int, np.integer)) or b < 2:
                 raise ValueError(f"dimension {i}: bins must be an int >= 2, got {b!r}")
-        self.bins = [int(b) for b in bins_list]
+        self._use([np.linspace(lo, hi, int(b)) for lo, hi, b in zip(lows, highs, bins_list)], indices)
+
+    def _use(self, edges: list[np.ndarray], indices: Sequence[int] | None) -> None:
+        self.edges = edges
         self.indices = None if indices is None else [int(i) for i in indices]
-        if self.indices is not None and len(self.indices) != n:
-            raise ValueError(f"indices has {len(self.indices)} entries, low/high have {n}")
+        if self.indices is not None and len(self.indices) != len(edges):
+            raise ValueError(f"indices has {len(self.indices)} entries, there are {len(edges)} dimensions")
         if self.indices is not None and min(self.indices) < 0:
             raise ValueError(f"indices must be >= 0, got {self.indices}")
-        self.edges = [np.linspace(lo, hi, b) for lo, hi, b in zip(self.low, self.high, self.bins)]
 
     @classmethod
     def from_edges(cls, edges: Sequence[ArrayLike], indices: Sequence[int] | None = None) -> Discretiser:
-        """Explicit, increasing bin edges per dimension (e.g. a dead band around 0)."""
+        """Explicit, increasing bin edges per dimension (e.g. a dead band around 0; one edge: a sign)."""
         arrays = [np.asarray(e, dtype=float) for e in edges]
         for i, e in enumerate(arrays):
-            if e.ndim != 1 or e.size < 2 or not np.all(np.diff(e) > 0):
-                raise ValueError(f"dimension {i}: edges must be at least 2 increasing numbers, got {e.tolist()}")
-        discretiser = cls([e[0] for e in arrays], [e[-1] for e in arrays], [e.size for e in arrays], indices)
-        discretiser.edges = arrays
+            if e.ndim != 1 or e.size < 1 or not np.all(np.diff(e) > 0) or not np.all(np.isfinite(e)):
+                raise ValueError(f"dimension {i}: edges must be increasing finite numbers, got {e.tolist()}")
+        discretiser = cls.__new__(cls)
+        discretiser._use(arrays, indices)
         return discretiser
 
     def _select(self, obs: Any) -> np.ndarray:
@@ -58,8 +59,8 @@ class Discretiser:
         if arr.ndim != 1:
             raise ValueError(f"observation must be 1-D, got shape {arr.shape}")
         if self.indices is None:
-            if arr.size != len(self.low):
-                raise ValueError(f"observation has {arr.size} values, discretiser expects {len(self.low)}")
+            if arr.size != len(self.edges):
+                raise ValueError(f"observation has {arr.size} values, discretiser expects {len(self.edges)}")
             used, dims = arr, list(range(arr.size))
         else:
             if max(self.indices) >= arr.size:

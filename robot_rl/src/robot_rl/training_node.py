@@ -4,10 +4,11 @@ Picks the task (private param ~task, default the package's first), reads and val
 from the parameter server (one line naming the key and the file, before anything is written),
 makes the env over ROS, opens a new run or the latest one to resume, trains, and publishes the
 rewards. Private params: ~task, ~config_file (named in errors), ~results_dir (default
-$ROS_HOME/training_results), ~resume, ~nepisodes (optional override), ~timeout (s, every wait on
-the sim), ~quiet (the per-episode "EP:" lines go to the debug log level), ~video (default true:
-once trained, video.mp4 next to learning_curve.png shows one greedy episode of the final Q-table,
-at most TRAINING_VIDEO_S of sim time, rendered on the direct backend so that the ROS sim is not needed).
+$ROS_HOME/training_results), ~resume, ~nepisodes and ~seed (optional overrides of the YAML's),
+~timeout (s, every wait on the sim), ~quiet (the per-episode "EP:" lines go to the debug log
+level), ~video (default true: once trained, video.mp4 next to learning_curve.png shows one greedy
+episode of the final Q-table, at most TRAINING_VIDEO_S of sim time, rendered on the direct backend so
+that the ROS sim is not needed).
 
 SIGINT or SIGTERM (Ctrl-C, roslaunch shutting down) stops the run cleanly: the episode under way is
 abandoned, a checkpoint and summary.json (marked incomplete) are written, and the node exits 130.
@@ -56,8 +57,8 @@ def _read_params(task: TaskSpec[Any]) -> TaskParams:
         load_yaml_file(config_file)  # rosparam keeps the last of two equal keys; a strict loader refuses them
     namespace = task.params_namespace
     params = task.params_type.from_mapping(rospy.get_param(namespace, {}), f"{config_file} ({namespace.rstrip('/')}/)")
-    nepisodes = rospy.get_param("~nepisodes", params.nepisodes)
-    return params.with_changes(rospy.get_name(), nepisodes=nepisodes)
+    overrides = {key: rospy.get_param(f"~{key}") for key in ("nepisodes", "seed") if rospy.has_param(f"~{key}")}
+    return params.with_changes(rospy.get_name(), **overrides) if overrides else params
 
 
 def _stop_on_signals() -> list[int]:
