@@ -1,6 +1,8 @@
 """Run by hopper_sim_node.py as its own process and ROS node, with a fresh env: gymnasium's check_env
 over ROS, then a seeded episode of 200 fixed actions over ROS must give exactly the observations of
 the direct backend (an in-process World with the sim launch's seed 0). Prints one line per check."""
+import dataclasses
+
 import gymnasium
 import numpy as np
 import rospy
@@ -24,8 +26,9 @@ def episode(env):
 
 def main():
     rospy.init_node("hopper_check_env")
-    env = gymnasium.make(STAY_UP.env_id, backend="ros").unwrapped
-    direct_env = gymnasium.make(STAY_UP.env_id, backend="direct", seed=0).unwrapped
+    params = dataclasses.replace(STAY_UP.default_params(), running_step=0.001)  # 200 steps stay up at 1 ms
+    env = gymnasium.make(STAY_UP.env_id, backend="ros", params=params).unwrapped
+    direct_env = gymnasium.make(STAY_UP.env_id, backend="direct", seed=0, params=params).unwrapped
     try:
         check_env(env, skip_render_check=True)
         print("check_env passed")
@@ -33,7 +36,7 @@ def main():
     finally:
         env.close()
         direct_env.close()
-    assert over_ros.shape == direct.shape == (201, 8), (over_ros.shape, direct.shape)
+    assert over_ros.shape == direct.shape == (201, 10), (over_ros.shape, direct.shape)
     assert np.abs(over_ros - over_ros[0]).max() > 1e-3, "the actions should change the observations"
     difference = float(np.abs(over_ros - direct).max())
     assert difference <= 1e-9, f"ROS and direct observations differ by {difference}"

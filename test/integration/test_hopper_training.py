@@ -79,11 +79,11 @@ def test_three_episodes_over_ros_then_evaluate(ros_master, tmp_path):
     steps = [int(row[1]) for row in episodes]
     returns = [float(row[2]) for row in episodes]
     assert all(1 <= n <= NSTEPS for n in steps)
-    # sim_time accumulates steps * running_step (0.001 s)
+    # sim_time accumulates steps * running_step (0.02 s)
     assert [float(row[4]) for row in episodes] == [
-        _approx(0.001 * sum(steps[:i + 1])) for i in range(NEPISODES)]
+        _approx(0.02 * sum(steps[:i + 1])) for i in range(NEPISODES)]
     # epsilon decays once per episode from 0.9
-    assert [float(row[3]) for row in episodes] == [_approx(0.9 * 0.999 ** (i + 1)) for i in range(NEPISODES)]
+    assert [float(row[3]) for row in episodes] == [_approx(0.9 * 0.99 ** (i + 1)) for i in range(NEPISODES)]
 
     params = yaml.safe_load((run / "params.yaml").read_text())
     assert (params["nsteps"], params["nepisodes"]) == (NSTEPS, NEPISODES)
@@ -93,8 +93,8 @@ def test_three_episodes_over_ros_then_evaluate(ros_master, tmp_path):
     summary = json.loads((run / "summary.json").read_text())
     assert summary["completed"] is True
     assert (summary["episodes"], summary["env_steps"]) == (NEPISODES, sum(steps))
-    # The greedy policy's video: 1 ms steps, so one frame every 34 steps (29.4 frames/s, real time).
-    assert "frames at 29.4 frames/s" in log and (run / "video.mp4").stat().st_size > 0, log[-4000:]
+    # The greedy policy's video: 20 ms steps, so one frame every 2 steps (25 frames/s, real time).
+    assert "frames at 25.0 frames/s" in log and (run / "video.mp4").stat().st_size > 0, log[-4000:]
     for text in ("EP: 1", "EP: 2", "EP: 3", "Overall score", "Best 100 score"):
         assert text in log, f"no '{text}' in the training log:\n{log[-4000:]}"
 
@@ -124,5 +124,5 @@ def test_three_episodes_over_ros_then_evaluate(ros_master, tmp_path):
         if result["upright_whole_horizon_rate"] == 1.0:  # episodes end by a fall or at the horizon
             assert result["mean_time_upright_s"] == _approx(0.2)
         # each step earns at most alive_reward; a fall gives done_reward
-        assert result["mean_return"] <= 100.0 * result["mean_time_upright_s"] / 0.001
+        assert result["mean_return"] <= 100.0 * result["mean_time_upright_s"] / 0.02
     print(f"training {training_time:.1f} s, evaluate {evaluate_time:.1f} s")

@@ -4,7 +4,7 @@ imageio's ffmpeg plugin; imageio-ffmpeg ships the ffmpeg binary).
 Like gymnasium's RecordVideo, it takes a frame after each reset and after steps, but it keeps the video
 in real time at a frame rate a player handles: one frame every `frame_every` steps, the fewest that
 keep render_fps / frame_every at most MAX_FPS. The cube (a step of 0.06 s of sim time) gets every step
-at 16.7 frames/s; the hopper (1 ms steps, render_fps 1000) every 34th step at 29.4 frames/s. An
+at 16.7 frames/s; the monoped (20 ms steps, render_fps 50) every 2nd step at 25 frames/s. An
 episode of n steps thus gives 1 + n // frame_every frames. Only the first `episodes` episodes after
 the wrapper is made are recorded; the file is complete once the wrapper is closed.
 """
