@@ -32,7 +32,7 @@ APT_PACKAGES=(
   python3-std-msgs ros-std-msgs python3-std-srvs ros-std-srvs
   python3-geometry-msgs ros-geometry-msgs python3-sensor-msgs ros-sensor-msgs
   python3-nav-msgs ros-nav-msgs python3-rosgraph-msgs ros-rosgraph-msgs
-  python3-tf2-msgs ros-tf2-msgs tf-tools librostest-dev libsensor-msgs-dev
+  python3-tf2-msgs ros-tf2-msgs tf-tools librostest-dev libsensor-msgs-dev libnav-msgs-dev
 )
 
 # Installed only when asked for: rviz (./ws rviz, ./ws run ... rviz:=true, ./ws test), Tk for the reward
