@@ -217,6 +217,12 @@ class RosBackend(Backend):
                            f"{', '.join(sorted(self._controllers))})")
         self._pending[controller] = value
 
+    def take_commands(self) -> dict[str, float]:
+        """The commands set since the last step, which the next step would send; forgets them (for a client
+        that publishes them on the command topics itself, as the tutorials' Gazebo-style step does)."""
+        pending, self._pending = self._pending, {}
+        return pending
+
     def step(self, physics_steps: int) -> Readings:
         pending = self._pending
         self._pending = {}
