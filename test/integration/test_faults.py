@@ -436,6 +436,23 @@ def test_ctrl_c_stops_with_a_checkpoint_and_an_incomplete_summary_then_resumes(m
     assert json.loads((results / "moving_cube" / "latest" / "qtable.json").read_text())["episode"] == saved
     assert episodes(results) == list(range(1, saved + 1)), "the interrupted episode is not logged"
 
+    result = master.run([*CUBE_TRAINING, f"config:={tmp_path / 'config.yaml'}", f"results_dir:={results}",
+                         "resume:=true", f"nepisodes:={saved + 5}"], timeout=180)
+    assert result.returncode == 0, (result.stdout + result.stderr)[-3000:]
+    assert episodes(results) == list(range(1, saved + 6))
+    assert json.loads((results / "moving_cube" / "latest" / "summary.json").read_text())["completed"] is True
+
+
+def test_the_master_killed_during_training_does_not_stop_it(master, tmp_path):
+    """Nodes talk peer to peer once connected: the run finishes and writes everything."""
+    log = tmp_path / "run.log"
+    launch = start_cube_training(master, tmp_path, log, nepisodes=30)
+    wait_for(logged_episode(log, 5), 120, "episode 5")
+    os.kill(master.master_pid, signal.SIGKILL)
+    assert launch.wait(180) == 0, log.read_text()[-3000:]
+    one_line(log.read_text(), "Training complete: 30 episodes")
+    assert episodes(tmp_path / "results") == list(range(1, 31))
+
 
 def test_sigkill_of_the_sim_stops_training_with_one_line_and_a_checkpoint(master, tmp_path):
     log = tmp_path / "run.log"

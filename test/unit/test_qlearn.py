@@ -112,3 +112,48 @@ def test_from_dict_rejects_wrong_format():
         QLearn.from_dict(d)
     with pytest.raises(ValueError, match="format"):
         QLearn.from_dict({"q": []})
+
+
+def tried_actions(ql, visits, reward=100.0):
+    """Visit one new state `visits` times, learning a positive reward for whatever is chosen."""
+    tried = []
+    for _ in range(visits):
+        action = ql.chooseAction("new")
+        tried.append(action)
+        ql.learn("new", action, reward, "next")
+    return tried
+
+
+def test_epsilon_greedy_tries_every_action_of_a_new_state_within_bounded_visits():
+    ql = QLearn(range(6), epsilon=0.3, alpha=0.2, gamma=0.98, seed=5, exploration="epsilon_greedy")
+    tried = tried_actions(ql, 100)
+    # with probability 0.3 a uniform action: missing one of 6 in 100 visits has probability < 6 * (1 - 0.05)^100
+    assert set(tried) == set(range(6))
+    assert len(set(tried[:60])) == 6
+
+
+def test_optimistic_initial_values_try_every_action_greedily():
+    """Unseen pairs are worth q_init; a first visit steps from it, so each action is tried once first."""
+    ql = QLearn(range(6), epsilon=0.0, alpha=0.2, gamma=0.98, seed=5, exploration="epsilon_greedy",
+                q_init=5000.0, first_visit="target")
+    assert sorted(tried_actions(ql, 6, reward=0.0)) == list(range(6))
+    assert ql.getQ("new", 0) == pytest.approx(5000.0 + 0.2 * (0.0 + 0.98 * 5000.0 - 5000.0))
+
+
+def test_the_tutorials_noise_never_tries_an_untried_action_when_rewards_are_positive():
+    """Why the monoped did not learn with the tutorial's rule: noise of +/- half the largest |Q| cannot lift
+    an untried action (Q = 0) above a tried one (Q = its positive first reward)."""
+    ql = QLearn(range(6), epsilon=0.9, alpha=0.1, gamma=0.8, seed=5)
+    assert len(set(tried_actions(ql, 500))) == 1
+
+
+@pytest.mark.parametrize("exploration, first_visit", [("epsilon_greedy", "target"), ("noise", "reward")])
+def test_the_choices_are_saved_with_the_table(exploration, first_visit):
+    ql = QLearn(range(3), 0.2, 0.1, 0.9, seed=1, exploration=exploration, q_init=7.5, first_visit=first_visit)
+    loaded = QLearn.from_dict(json.loads(json.dumps(ql.to_dict())))
+    assert (loaded.exploration, loaded.q_init, loaded.first_visit) == (exploration, 7.5, first_visit)
+
+
+def test_unknown_choices_are_refused():
+    with pytest.raises(ValueError, match="exploration"):
+        QLearn(range(3), 0.2, 0.1, 0.9, exploration="softmax")

@@ -131,6 +131,13 @@ class TaskParams(Params):
     nsteps: int = param(low=1, doc="env steps per episode at most")
     running_step: float = param(low=0.0, low_open=True, doc="sim seconds per env step")
     seed: int = param(low=0, default=0, doc="seeds the Q-learning RNG (exploration, tie breaks)")
+    epsilon_min: float = param(low=0.0, high=1.0, default=0.05,
+                               doc="epsilon decays only while above this (the tutorial's 0.05)")
+    exploration: str = param(choices=("noise", "epsilon_greedy"), default="noise",
+                             doc="noise: the tutorial's noise on Q; epsilon_greedy: a random action")
+    q_init: float = param(default=0.0, doc="Q of a pair never updated (the tutorial's 0)")
+    first_visit: str = param(choices=("reward", "target"), default="reward",
+                             doc="a pair's first update: store the reward (tutorial) or step from q_init")
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):

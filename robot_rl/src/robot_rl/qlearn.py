@@ -4,7 +4,14 @@ Differences from the tutorial:
 - every random draw comes from the instance's own ``random.Random(seed)``, never the global module;
 - ``learn(..., terminal=True)`` uses the reward alone as target: the tutorial bootstrapped from
   the Q-values of the terminal state, which never get updated and so only add noise;
-- the table, hyper-parameters and RNG state go to JSON (no pickle) and reload exactly (to_dict/from_dict).
+- the table, hyper-parameters and RNG state go to JSON (no pickle) and reload exactly (to_dict/from_dict);
+- three choices, each with the tutorial's rule as its default:
+  exploration "noise" (the tutorial's: with probability epsilon, noise of +/- half the largest |Q| on
+  every Q-value, so an untried action, Q = q_init, can never beat a tried one whose Q is above it)
+  or "epsilon_greedy" (with probability epsilon, a uniformly random action);
+  q_init, the value of a pair never updated (0);
+  first_visit "reward" (the tutorial's: a pair's first update stores the reward) or "target" (a
+  normal alpha step from q_init, which keeps an optimistic q_init optimistic for a while).
 """
 from __future__ import annotations
 
@@ -13,6 +20,8 @@ from collections.abc import Iterable
 from typing import Any, Literal, overload
 
 FORMAT = "robot_rl.qlearn/1"
+EXPLORATIONS = ("noise", "epsilon_greedy")
+FIRST_VISITS = ("reward", "target")
 
 
 def _to_lists(value: Any) -> Any:
@@ -28,27 +37,34 @@ def _to_tuples(value: Any) -> Any:
 
 
 class QLearn:
-    """Q-table keyed by (state, action) with epsilon-noise exploration."""
+    """Q-table keyed by (state, action) with epsilon exploration (see the module doc for the choices)."""
 
     def __init__(self, actions: Iterable[int], epsilon: float, alpha: float, gamma: float,
-                 seed: int | None = None) -> None:
+                 seed: int | None = None, exploration: str = "noise", q_init: float = 0.0,
+                 first_visit: str = "reward") -> None:
+        if exploration not in EXPLORATIONS or first_visit not in FIRST_VISITS:
+            raise ValueError(f"exploration must be one of {EXPLORATIONS} and first_visit one of {FIRST_VISITS}, "
+                             f"got {exploration!r} and {first_visit!r}")
         self.q: dict[tuple[str, int], float] = {}
         self.epsilon = epsilon  # exploration probability
         self.alpha = alpha      # learning rate
         self.gamma = gamma      # discount factor
         self.actions = [int(a) for a in actions]
         self.rng = random.Random(seed)
+        self.exploration, self.q_init, self.first_visit = exploration, q_init, first_visit
 
     def getQ(self, state: str, action: int) -> float:
-        return self.q.get((state, action), 0.0)
+        return self.q.get((state, action), self.q_init)
 
     def learnQ(self, state: str, action: int, reward: float, value: float) -> None:
-        """Move Q towards `value`; a first visit stores `reward` itself (tutorial rule)."""
+        """Move Q towards `value`; with first_visit "reward" a pair's first update stores `reward` itself."""
         old = self.q.get((state, action))
         if old is None:
-            self.q[(state, action)] = reward
-        else:
-            self.q[(state, action)] = old + self.alpha * (value - old)
+            if self.first_visit == "reward":
+                self.q[(state, action)] = reward
+                return
+            old = self.q_init
+        self.q[(state, action)] = old + self.alpha * (value - old)
 
     def learn(self, state1: str, action1: int, reward: float, state2: str,
               terminal: bool = False) -> None:
@@ -77,6 +93,9 @@ class QLearn:
         """Epsilon-noise action choice; returns (action, q) when `return_q`."""
         q = [self.getQ(state, a) for a in self.actions]
         maxQ = max(q)
+        if self.exploration == "epsilon_greedy":
+            action = self.rng.choice(self.actions) if self.rng.random() < self.epsilon else self.actions[self._pick(q)]
+            return (action, q) if return_q else action
         if self.rng.random() < self.epsilon:
             mag = max(abs(min(q)), abs(maxQ))
             q = [q[i] + self.rng.random() * mag - .5 * mag for i in range(len(self.actions))]
@@ -100,6 +119,9 @@ class QLearn:
             "alpha": self.alpha,
             "gamma": self.gamma,
             "epsilon": self.epsilon,
+            "exploration": self.exploration,
+            "q_init": self.q_init,
+            "first_visit": self.first_visit,
             "q": [[s, int(a), float(v)] for (s, a), v in sorted(self.q.items())],
             "rng_state": _to_lists(self.rng.getstate()),
         }
@@ -110,7 +132,8 @@ class QLearn:
         fmt = d.get("format") if isinstance(d, dict) else None
         if fmt != FORMAT:
             raise ValueError(f"not a QLearn table: format is {fmt!r}, expected {FORMAT!r}")
-        ql = cls(d["actions"], d["epsilon"], d["alpha"], d["gamma"])
+        ql = cls(d["actions"], d["epsilon"], d["alpha"], d["gamma"], exploration=d.get("exploration", "noise"),
+                 q_init=d.get("q_init", 0.0), first_visit=d.get("first_visit", "reward"))
         ql.q = {(str(s), int(a)): float(v) for s, a, v in d["q"]}
         ql.rng.setstate(_to_tuples(d["rng_state"]))
         return ql

@@ -1,7 +1,8 @@
 """The tutorials' Q-learning loop, shared by every task, with results on disk and resume.
 
-Per episode, as in the tutorials' start_training scripts: decay epsilon (while > 0.05), reset, then
-up to nsteps of chooseAction -> env.step -> learn, and one log line "EP: ...". Past the tutorials:
+Per episode, as in the tutorials' start_training scripts: decay epsilon (while above epsilon_min, the
+tutorials' 0.05), reset, then up to nsteps of chooseAction -> env.step -> learn, and one log line
+"EP: ...". Past the tutorials:
 terminal transitions do not bootstrap, the step cap is gymnasium truncation, every episode is
 appended to episodes.csv with the task's metrics, a progress line (rate, ETA, the task's headline
 metric) is logged every few seconds, a checkpoint (Q-table, epsilon, RNG, counters; JSON, atomic)
@@ -86,7 +87,8 @@ class QLearningTrainer:
             log(f"Resuming {run.path} after episode {self.state.episode} (epsilon {self.qlearn.epsilon:.4f})")
         else:
             self.qlearn = QLearn(actions=range(self.n_actions), epsilon=params.epsilon, alpha=params.alpha,
-                                 gamma=params.gamma, seed=params.seed)
+                                 gamma=params.gamma, seed=params.seed, exploration=params.exploration,
+                                 q_init=params.q_init, first_visit=params.first_visit)
             self.state = TrainingState()
             self.initial_epsilon = params.epsilon
 
@@ -118,7 +120,7 @@ class QLearningTrainer:
     def _episode(self, first: bool) -> tuple[Episode, float]:
         """One episode: (the episode, the highest cumulated reward within it). Changes only the Q-learner."""
         qlearn, env = self.qlearn, self.env
-        if qlearn.epsilon > 0.05:
+        if qlearn.epsilon > self.params.epsilon_min:
             qlearn.epsilon *= self.params.epsilon_discount
         # The first episode of a (resumed) run restarts sim time and sensor noise from the seeds.
         observation, _ = env.reset(seed=self.params.seed if first else None)

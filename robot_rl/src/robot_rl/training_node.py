@@ -83,7 +83,7 @@ def _close_quietly(env: Any) -> None:
     """Close the env; after a shutdown its connections may already be gone, which is fine."""
     try:
         env.close()
-    except (SimConnectionError, rospy.ROSException):
+    except (SimConnectionError, rospy.ROSException, OSError):  # OSError: the master is gone
         pass
 
 
@@ -146,6 +146,7 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     resume = rospy.get_param("~resume", False)
     timeout = float(rospy.get_param("~timeout", 10.0))
     log_episode = rospy.logdebug if rospy.get_param("~quiet", False) else rospy.loginfo
+    video = rospy.get_param("~video", True)  # read now: nothing needs the master once training runs
     try:
         env = _make_env(task, params, agent, envs, timeout)
     except (SimConnectionError, WorkerError) as error:
@@ -206,7 +207,7 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     rospy.loginfo("Training complete: %d episodes, %d env steps in %.1f s (%.0f steps/s). Results: %s",
                   summary["episodes"], summary["env_steps"], summary["wall_time_s"], summary["env_steps_per_s"] or 0.0,
                   run.path)
-    if rospy.get_param("~video", True):
+    if video:
         try:
             _write_video(tasks, task, run, params.seed)
         except (OSError, ValueError, RuntimeError) as error:
