@@ -29,7 +29,7 @@ class VectorQLearningTrainer(QLearningTrainer):
     env: RobotVectorEnv  # type: ignore[assignment]  # QLearningTrainer's env, N of them
 
     def _decay_epsilon(self) -> None:
-        if self.qlearn.epsilon > 0.05:
+        if self.qlearn.epsilon > self.params.epsilon_min:
             self.qlearn.epsilon *= self.params.epsilon_discount
 
     def _save_quietly(self, reason: str) -> None:
