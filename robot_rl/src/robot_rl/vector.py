@@ -103,7 +103,9 @@ def _worker(index: int, recipe: WorkerRecipe, conn: multiprocessing.connection.C
     env, sim = None, None
     try:
         env, sim = _worker_env(index, recipe)
-        conn.send(("ok", (env.observation_space, env.action_space, env.metadata)))
+        info = {"pid": os.getpid(), "master_uri": sim.uri if sim else None,
+                "children": [p.pid for p in sim.processes] if sim else []}
+        conn.send(("ok", (env.observation_space, env.action_space, env.metadata, info)))
         while True:
             try:
                 command, data = conn.recv()
@@ -185,7 +187,9 @@ class EnvWorkers:
         except BaseException:
             self.close()
             raise
-        self.observation_space, self.action_space, self.metadata = ready[0]
+        self.observation_space, self.action_space, self.metadata = ready[0][:3]
+        # Per worker: its pid, its master's URI (None when direct) and the pids of its master and sim node.
+        self.worker_info: list[dict[str, Any]] = [reply[3] for reply in ready]
 
     def _what_to_check(self, i: int) -> str:
         if self.backend == "ros":
