@@ -4,7 +4,6 @@ Prints one JSON line once it steps: the pids of the workers and of every master 
 started. It does nothing on Ctrl-C itself, as a user's script would not: the test checks that SIGINT
 to the process group leaves no process behind."""
 import json
-import sys
 
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
 from robot_rl.vector import make_vector_env
@@ -20,4 +19,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()
