@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
 """The course's comparison: tabular Q-learning vs DQN vs PPO on one robot, at the same number of env steps.
 
-  compare_agents.py ROBOT [--seeds 0 1 2] [--eval-seed 0] [--episodes 20] [--output DIR]
+  compare_agents.py ROBOT [--seeds 0 1 2] [--nepisodes N] [--eval-seed 0] [--episodes 20] [--output DIR]
 
 For each seed (the task's `seed` param: Q-learning's RNG, SB3's seed; the sim's noise seed too), over
 ROS with one env, as `./ws run ROBOT agent:=...` trains: tabular Q-learning for the task config's
-nepisodes; then DQN and PPO with max_steps:= the env steps that tabular run took, so all three see the
+nepisodes (or --nepisodes); then DQN and PPO with max_steps:= the env steps that tabular run took, so all three see the
 same number of env steps. Every final policy is evaluated greedily (evaluate.py, --episodes episodes,
 direct backend, seed --eval-seed). Writes DIR/comparison.json (every run), DIR/comparison.md (the
 table: the headline metric of the greedy policy, wall time, env steps/s; mean and range over the seeds)
@@ -57,10 +57,13 @@ def _config_with_seed(task: TaskSpec[Any], seed: int, folder: Path) -> Path:
 
 
 def _train(robot: str, agent: str, seed: int, config: Path, results: Path, log_dir: Path,
-           max_steps: int | None) -> Path:
+           max_steps: int | None, nepisodes: int | None) -> Path:
     """One training run over ROS (the robot's main.launch); returns its run folder."""
     _, package = ROBOTS[robot]
-    args = dict(config=config, results_dir=results, seed=seed, video="false", quiet="true", agent=agent)
+    args: dict[str, Any] = dict(config=config, results_dir=results, seed=seed, video="false", quiet="true",
+                                agent=agent)
+    if nepisodes is not None:
+        args.update(nepisodes=nepisodes)
     if max_steps is not None:
         args.update(max_steps=max_steps, nepisodes=10**6)  # the step budget decides
     master = RosMaster(log_dir)
@@ -104,7 +107,8 @@ def _machine() -> str:
     return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}"
 
 
-def compare(robot: str, seeds: list[int], eval_seed: int, episodes: int, output: Path) -> dict[str, Any]:
+def compare(robot: str, seeds: list[int], eval_seed: int, episodes: int, output: Path,
+            nepisodes: int | None) -> dict[str, Any]:
     task, _ = ROBOTS[robot]
     output.mkdir(parents=True, exist_ok=True)
     results = output / "runs"
@@ -113,6 +117,8 @@ def compare(robot: str, seeds: list[int], eval_seed: int, episodes: int, output:
     report: dict[str, Any] = {"robot": robot, "task": task.env_id, "machine": _machine(),
                               "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
                               "seeds": seeds, "eval_seed": eval_seed, "eval_episodes": episodes,
+                              "qlearn_nepisodes": nepisodes or task.default_params().nepisodes,
+                              "running_step": task.default_params().running_step,
                               "headline_metric": headline, "greedy_metric": greedy_key, "runs": []}
     with tempfile.TemporaryDirectory(prefix="compare-") as tmp_dir:
         tmp = Path(tmp_dir)
@@ -120,7 +126,7 @@ def compare(robot: str, seeds: list[int], eval_seed: int, episodes: int, output:
             config = _config_with_seed(task, seed, output)
             budget = None
             for agent in AGENTS:
-                run = _train(robot, agent, seed, config, results, tmp / f"{agent}-{seed}", budget)
+                run = _train(robot, agent, seed, config, results, tmp / f"{agent}-{seed}", budget, nepisodes)
                 summary = json.loads((run / "summary.json").read_text())
                 if agent == "qlearn":
                     budget = summary["env_steps"]
@@ -147,7 +153,9 @@ def _stats(values: list[float], fmt: str) -> str:
 
 def _write_table(report: dict[str, Any], path: Path) -> None:
     key = report["greedy_metric"]
-    lines = [f"{report['task']}, seeds {', '.join(map(str, report['seeds']))} (mean (min-max)); greedy policy: "
+    lines = [f"{report['task']} (running_step {report['running_step']} s, tabular Q-learning "
+             f"{report['qlearn_nepisodes']} episodes, the others its env steps), seeds "
+             f"{', '.join(map(str, report['seeds']))} (mean (min-max)); greedy policy: "
              f"{report['eval_episodes']} episodes, direct backend, evaluation seed {report['eval_seed']}; "
              f"{report['machine']}, {report['date']}", "",
              f"| agent | env steps | greedy {key} | random {key} | wall time (s) | env steps/s |",
@@ -194,6 +202,7 @@ def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("robot", choices=sorted(ROBOTS))
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    parser.add_argument("--nepisodes", type=int, help="tabular Q-learning's episodes (default: the task config's)")
     parser.add_argument("--eval-seed", type=int, default=0)
     parser.add_argument("--episodes", type=int, default=20, help="greedy (and random) evaluation episodes")
     parser.add_argument("--output", type=Path, help="default: comparison/<robot>")
@@ -205,7 +214,7 @@ def main(argv: list[str]) -> int:
         _write_table(report, output / "comparison.md")
         _plot(report, output / "learning_curves.png")
         return 0
-    compare(args.robot, args.seeds, args.eval_seed, args.episodes, output.resolve())
+    compare(args.robot, args.seeds, args.eval_seed, args.episodes, output.resolve(), args.nepisodes)
     return 0
 
 
