@@ -188,3 +188,46 @@ def test_a_short_dqn_run_over_ros_writes_every_results_file_and_resumes(tmp_path
     assert evaluation.returncode == 0, evaluation.stderr
     report = json.loads(evaluation.stdout.strip().splitlines()[-1])
     assert report["task"] == "MovingCubeOneDiskWalk-v0" and report["episodes"] == 2
+
+
+def descendants(pid):
+    """Every process below `pid` (from /proc's parent links)."""
+    children = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                parent = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            except (OSError, IndexError):
+                continue
+            children.setdefault(parent, []).append(int(entry.name))
+    found, todo = [], [pid]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            found.append(child)
+            todo.append(child)
+    return found
+
+
+def test_ctrl_c_on_a_training_from_two_envs_ends_every_process_and_saves_the_run(tmp_path):
+    log = tmp_path / "run.log"
+    master = RosMaster(tmp_path / "ros", cwd=REPO)
+    try:
+        with open(log, "w") as out:
+            launch = master.start(["roslaunch", "moving_cube_training", "main.launch", *launch_args(
+                results_dir=tmp_path / "results", config=write_config(tmp_path / "c.yaml", nsteps=15), envs=2,
+                nepisodes=100000, video="false")], stdout=out, stderr=subprocess.STDOUT)
+        end = time.monotonic() + 120
+        while "EP: 4 " not in log.read_text():
+            assert time.monotonic() < end and launch.poll() is None, f"no 4th episode:\n{log.read_text()[-3000:]}"
+            time.sleep(0.1)
+        pids = descendants(launch.pid)
+        assert len(pids) >= 7, "the training node, 2 workers, their 2 masters and 2 sim nodes (and the launch's)"
+        launch.send_signal(signal.SIGINT)  # Ctrl-C reaches roslaunch, which stops every node with SIGINT
+        launch.wait(60)
+        assert "training interrupted after episode" in log.read_text(), log.read_text()[-3000:]
+        wait_gone(pids)
+        assert master.leftovers() == []
+    finally:
+        master.close()
+    summary = json.loads((tmp_path / "results" / "moving_cube" / "latest" / "summary.json").read_text())
+    assert (summary["completed"], summary["stopped"]) == (False, "interrupted") and summary["episodes"] >= 4
