@@ -13,7 +13,9 @@ overrides it (e.g. hopper=0.02), and the table and the JSON say which was used.
 Sections (--sections, default all):
 - lockstep: one env over ROS (the sim node of a roslaunch'd sim launch) and direct (in-process).
 - scaling: robot_rl.vector's gymnasium vector env with N = 1, 2, 4 workers, over ROS (each worker
-  with its own master and sim node) and direct; parallel efficiency = steps/s at N / (N x at 1).
+  with its own master and sim node) and direct; parallel efficiency = steps/s at N / (N x at 1); and
+  the CPU time per env step of every process involved, which says whether a loss of efficiency is
+  work added by more workers or cores the machine did not give.
 - deep: Stable-Baselines3 DQN (robot_rl/config/dqn.yaml) learning for a number of env steps on one
   env over ROS and direct; its env steps per second of wall time, gradient steps included.
 - gazebo: the tutorials' Gazebo-style step.
@@ -92,8 +94,30 @@ def worker_lockstep(robot: str, backend: str, steps: int, running_step: float) -
     return {"steps_per_s": steps / elapsed, "running_step": env.unwrapped.running_step}
 
 
+def _tree_cpu_s() -> float:
+    """CPU seconds used so far by this process and every process below it (workers, masters, sim nodes)."""
+    parents: dict[int, list[int]] = {}
+    stats: dict[int, list[str]] = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:  # gone
+                continue
+            stats[int(entry.name)] = fields
+            parents.setdefault(int(fields[1]), []).append(int(entry.name))
+    total, todo = 0.0, [os.getpid()]
+    while todo:
+        pid = todo.pop()
+        if pid in stats:
+            total += (int(stats[pid][11]) + int(stats[pid][12])) / os.sysconf("SC_CLK_TCK")
+        todo.extend(parents.get(pid, []))
+    return total
+
+
 def worker_vector(robot: str, backend: str, n: int, steps: int, running_step: float) -> dict:
-    """robot_rl.vector's gymnasium vector env of n workers: env steps/s (all workers together)."""
+    """robot_rl.vector's gymnasium vector env of n workers: env steps/s (all workers together) and the CPU
+    time per env step of every process involved (this one, the workers, their masters and sim nodes)."""
     import numpy as np
 
     from robot_rl.vector import make_vector_env
@@ -103,13 +127,13 @@ def worker_vector(robot: str, backend: str, n: int, steps: int, running_step: fl
         n_actions = int(env.single_action_space.n)  # type: ignore[attr-defined]
         env.reset(seed=0)
         vector_steps = max(1, steps // n)
-        start = time.perf_counter()
+        start, cpu_start = time.perf_counter(), _tree_cpu_s()
         for _ in range(vector_steps):
             env.step(rng.integers(n_actions, size=n))
-        elapsed = time.perf_counter() - start
+        elapsed, cpu = time.perf_counter() - start, _tree_cpu_s() - cpu_start
     finally:
         env.close()
-    return {"steps_per_s": vector_steps * n / elapsed}
+    return {"steps_per_s": vector_steps * n / elapsed, "cpu_ms_per_step": 1000.0 * cpu / (vector_steps * n)}
 
 
 def worker_deep(robot: str, backend: str, steps: int, running_step: float) -> dict:
@@ -265,6 +289,7 @@ def _rep(tmp: Path, rep: int, robot: str, running_step: float, sections: set[str
                                      ["vector", robot, backend, n, steps * n, running_step], timeout=900)
                 rates[n] = result["steps_per_s"]
                 s[f"{backend}_vector_{n}"].append(rates[n])
+                s[f"{backend}_cpu_{n}"].append(result["cpu_ms_per_step"])
             for n in SCALING_ENVS[1:]:
                 s[f"{backend}_efficiency_{n}"].append(rates[n] / (n * rates[1]))
             _log(f"rep {rep + 1} {robot}: vector env {backend}: " + ", ".join(
@@ -312,6 +337,7 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
                 "steps_per_s": {str(n): median(s[f"{backend}_vector_{n}"]) for n in SCALING_ENVS},
                 "parallel_efficiency": {str(n): median(s[f"{backend}_efficiency_{n}"]) for n in SCALING_ENVS[1:]},
                 "speedup": {str(n): n * median(s[f"{backend}_efficiency_{n}"]) for n in SCALING_ENVS[1:]},
+                "cpu_ms_per_step": {str(n): median(s[f"{backend}_cpu_{n}"]) for n in SCALING_ENVS},
             } for backend in ("ros", "direct")}
         if "deep" in sections:
             r["dqn"] = {"steps": DEEP_STEPS, "ros_steps_per_s": median(s["deep_ros"]),
@@ -352,6 +378,9 @@ def print_table(report: dict) -> None:
         for n in SCALING_ENVS:
             _row(report, f"vector env, {backend}, N = {n}, env steps/s",
                  lambda r, backend=backend, n=n: r["scaling"][backend]["steps_per_s"][str(n)], "{:.0f}")
+        for n in SCALING_ENVS:
+            _row(report, f"vector env, {backend}, N = {n}, CPU ms per env step",
+                 lambda r, backend=backend, n=n: r["scaling"][backend]["cpu_ms_per_step"][str(n)], "{:.2f}")
         for n in SCALING_ENVS[1:]:
             _row(report, f"vector env, {backend}, N = {n}: speedup over N = 1",
                  lambda r, backend=backend, n=n: r["scaling"][backend]["speedup"][str(n)], "{:.2f}")
