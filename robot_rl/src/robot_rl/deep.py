@@ -333,8 +333,9 @@ class DeepTrainer:
             self.on_episode(return_)
         per_env = f" - env {env_index + 1}/{self.n_envs} (episodes per env: " \
                   f"{', '.join(map(str, self.episodes_per_env))})" if self.n_envs > 1 else ""
-        self.log_episode(f"EP: {state.episode} - [{self.agent}: exploration {self._exploration():.2f}] - Reward: "
-                         f"{return_:.1f}     Time: {format_duration(state.wall_time)}{per_env}")
+        exploration = f": exploration {self._exploration():.2f}" if isinstance(self.model, DQN) else ""
+        self.log_episode(f"EP: {state.episode} - [{self.agent}{exploration}] - Reward: {return_:.1f}     Time: "
+                         f"{format_duration(state.wall_time)}{per_env}")
         if state.episode % self.checkpoint_every == 0:
             self._count_steps()
             self.checkpoint()
@@ -353,7 +354,7 @@ class DeepTrainer:
             value = next(iter(aggregate({self.task.headline_metric: self.headline}).items()))
             self.log(f"progress: episode {state.episode}/{self.params.nepisodes}, {state.env_steps} env steps, "
                      f"{rate:.0f} env steps/s, {value[0]} over the last {len(self.headline)} episodes: "
-                     f"{value[1]:.3g}, exploration {self._exploration():.3f}")
+                     f"{value[1]:.3g}" + (f", exploration {self._exploration():.3f}" if isinstance(self.model, DQN) else ""))
         if self.should_stop():
             self.stopped = "interrupted"
             return False
