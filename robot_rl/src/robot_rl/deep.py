@@ -352,9 +352,10 @@ class DeepTrainer:
             state = self.state
             rate = state.env_steps / max(now - self._wall_start, 1e-9)
             value = next(iter(aggregate({self.task.headline_metric: self.headline}).items()))
+            exploration = f", exploration {self._exploration():.3f}" if isinstance(self.model, DQN) else ""
             self.log(f"progress: episode {state.episode}/{self.params.nepisodes}, {state.env_steps} env steps, "
                      f"{rate:.0f} env steps/s, {value[0]} over the last {len(self.headline)} episodes: "
-                     f"{value[1]:.3g}" + (f", exploration {self._exploration():.3f}" if isinstance(self.model, DQN) else ""))
+                     f"{value[1]:.3g}{exploration}")
         if self.should_stop():
             self.stopped = "interrupted"
             return False
