@@ -4,15 +4,16 @@
 # does only what is missing, so a second run starts in seconds.
 #
 #   ./ws run [cube|hopper] [NAME:=VALUE ...]  set up, then train (roslaunch <robot's package> main.launch);
-#                               rviz:=true also installs rviz (Debian's) and shows the robot in it
+#                               rviz:=true also installs rviz (Debian's) and shows the robot in it;
+#                               agent:=dqn|ppo also installs the deep agents (requirements-deep.txt)
 #   ./ws rviz [cube|hopper] [NAME:=VALUE ...] set up with rviz, then the robot's sim running, seen in rviz
 #   ./ws plot [NAMESPACE] [--output PNG]      a live plot of the reward topics (rqt_plot is not in Debian 12)
 #   ./ws test [PYTEST ARGS]     set up, then the linters and every test (pytest + rostest)
 #   ./ws lint                   set up, then only the linters (ruff, mypy, catkin_lint, roslaunch-check)
-#   ./ws bench [--reps N]       set up, then the speed benchmark (table + bench_results.json)
+#   ./ws bench [--reps N] [--quick]  set up (with the deep agents), then the speed benchmark
 #   ./ws python [ARGS...]       python inside the workspace environment (the venv, the devel space)
 #   ./ws exec CMD [ARGS...]     CMD inside the workspace environment
-#   ./ws setup                  only the set-up
+#   ./ws setup [deep]           only the set-up (deep: also torch and stable-baselines3)
 #   ./ws help                   this text and the arguments of every launch file ./ws run starts
 set -euo pipefail
 
@@ -32,7 +33,7 @@ APT_PACKAGES=(
   python3-std-msgs ros-std-msgs python3-std-srvs ros-std-srvs
   python3-geometry-msgs ros-geometry-msgs python3-sensor-msgs ros-sensor-msgs
   python3-nav-msgs ros-nav-msgs python3-rosgraph-msgs ros-rosgraph-msgs
-  python3-tf2-msgs ros-tf2-msgs tf-tools librostest-dev libsensor-msgs-dev
+  python3-tf2-msgs ros-tf2-msgs tf-tools librostest-dev libsensor-msgs-dev libnav-msgs-dev
 )
 
 # Installed only when asked for: rviz (./ws rviz, ./ws run ... rviz:=true, ./ws test), Tk for the reward
@@ -139,7 +140,7 @@ launch_of() {
 }
 
 usage() {
-  sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'
 }
 
 # The usage, then each training launch file's arguments, as roslaunch itself lists them.
@@ -191,7 +192,9 @@ command="${1:-}"
 [ $# -gt 0 ] && shift
 case "$command" in
   setup)
-    setup ;;
+    setup
+    if [ "${1:-}" = deep ]; then ensure_requirements requirements-deep.txt; elif [ $# -gt 0 ]; then
+      die "usage: ./ws setup [deep]"; fi ;;
   run)
     robot=cube
     if [ $# -gt 0 ] && [[ "$1" != *:=* && "$1" != -* ]]; then robot="$1"; shift; fi
@@ -204,6 +207,9 @@ case "$command" in
     done
     launch="$(launch_of "$robot")"
     setup
+    if printf '%s\n' "$@" | grep -qE '^agent:=(dqn|ppo)$'; then
+      ensure_requirements requirements-deep.txt
+    fi
     if printf '%s\n' "$@" | grep -qiE '^rviz:=(true|1)$'; then
       [ -n "${DISPLAY:-}" ] || die "rviz:=true needs a display (DISPLAY is not set)"
       ensure_apt_packages "${RVIZ_APT_PACKAGES[@]}"
@@ -239,6 +245,7 @@ case "$command" in
     ensure_apt_packages "${RVIZ_APT_PACKAGES[@]}" "${PLOT_APT_PACKAGES[@]}" "${TEST_APT_PACKAGES[@]}"
     private_master
     enter_environment
+    ensure_requirements requirements-deep.txt
     lint
     cd "$ROOT"
     # The whole test folder unless the arguments name test files or folders themselves.
@@ -247,6 +254,7 @@ case "$command" in
     exec python -m pytest -p no:cacheprovider "$@" "${paths[@]}" ;;
   bench)
     setup
+    ensure_requirements requirements-deep.txt
     private_master
     enter_environment
     cd "$ROOT"

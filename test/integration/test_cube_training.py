@@ -144,7 +144,7 @@ def test_evaluate_prints_one_json_line(three_episodes, tmp_path):
         assert 0.0 <= report[policy]["success_rate"] <= 1.0
     assert outputs[0].stdout.strip().splitlines()[-1] == outputs[1].stdout.strip().splitlines()[-1], \
         "the run folder and its qtable.json are the same Q-table; the direct backend is deterministic"
-    assert missing.returncode == 2 and "cannot read the trained Q-table" in missing.stderr
+    assert missing.returncode == 2 and "cannot read the trained run" in missing.stderr
 
 
 def test_evaluate_video_records_greedy_episodes_and_changes_no_number(three_episodes, tmp_path):

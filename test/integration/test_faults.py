@@ -343,7 +343,7 @@ def test_evaluate_refuses_a_bad_run_with_one_line(trained_run, tmp_path, damage,
     finally:
         runner.close()
     assert result.returncode == 2, result.stderr
-    assert one_line(result.stderr, expected).startswith("evaluate.py: cannot read the trained Q-table")
+    assert one_line(result.stderr, expected).startswith("evaluate.py: cannot read the trained run")
 
 
 # -- the env over ROS ----------------------------------------------------------------------------

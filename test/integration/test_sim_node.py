@@ -31,3 +31,21 @@ def test_two_runs_with_the_same_seed_give_identical_odom_streams(tmp_path):
     assert len(streams[0]) == 100
     assert streams[0] == streams[1]
     assert streams[0] != streams[2], "a different seed should give different noise"
+
+
+def test_step_and_reset_answer_with_the_messages_they_publish(tmp_path):
+    master = RosMaster(tmp_path, cwd=REPO)
+    try:
+        master.start(["roslaunch", "pybullet_sim", "hopper_sim.launch", *launch_args(paused="true")])
+        result = master.run(["python", str(Path(__file__).with_name("readings_client.py"))], timeout=120)
+    finally:
+        master.close()
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout.strip().splitlines()[-1])
+    every = {"joint_states": True, "odometry": True, "imu": True, "contacts": True}
+    assert report["reset"] == every and report["step"] == every
+    assert report["stamp"] == 0.2
+    # The commands in the request moved the joints towards their targets within 0.2 s (PID p = 10).
+    assert report["positions"][0] > 0.1 and report["positions"][1] < -0.05 and report["positions"][2] < -0.1
+    assert "no controller named no_such_controller (controllers: haa_joint_position_controller" in report["errors"][0]
+    assert "controllers and commands differ in length" in report["errors"][1]

@@ -1,11 +1,25 @@
 #!/usr/bin/env python3
 """./ws bench: env steps per second of both robots, over ROS in lockstep, in-process, and the
-tutorials' Gazebo-style step, on the real nodes. Prints a table and writes bench_results.json.
+tutorials' Gazebo-style step, on the real nodes; the scaling of vector envs; a deep agent's training
+over ROS against direct. Prints a table and writes bench_results.json.
 
 Every figure is the median of --reps repetitions, each in fresh processes (a new master, a new sim
 node, a new client); within a repetition every configuration runs once, so the ROS and direct runs
-are interleaved and their ratio holds on a noisy machine. Actions are random (seeded); episode
-resets are part of the measured time, as in training.
+are interleaved and their ratio holds on a noisy machine (ratios are medians of each repetition's
+ratio). Actions are random (seeded); episode resets are part of the measured time, as in training.
+Each robot's control period (running_step) is read from its task config; --running-step ROBOT=S
+overrides it (e.g. hopper=0.02), and the table and the JSON say which was used.
+
+Sections (--sections, default all):
+- lockstep: one env over ROS (the sim node of a roslaunch'd sim launch) and direct (in-process).
+- scaling: robot_rl.vector's gymnasium vector env with N = 1, 2, 4 workers, over ROS (each worker
+  with its own master and sim node) and direct; parallel efficiency = steps/s at N / (N x at 1); and
+  the CPU time per env step of every process involved, which says whether a loss of efficiency is
+  work added by more workers or cores the machine did not give.
+- deep: Stable-Baselines3 DQN (robot_rl/config/dqn.yaml) learning for a number of env steps on one
+  env over ROS and direct; its env steps per second of wall time, gradient steps included.
+- gazebo: the tutorials' Gazebo-style step.
+- training: 100 episodes of the cube's `main.launch` training.
 
 The Gazebo-style step is the tutorials': unpause, publish the command, wait running_step of sim
 time (on /clock, throttled to 100 Hz of wall time as gazebo_ros publishes it), pause, read the latest
@@ -16,44 +30,58 @@ from __future__ import annotations
 import argparse
 import datetime
 import json
+import math
+import os
 import platform
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
+from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from hopper_training.monoped_env import STAY_UP
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from robot_rl.params import TaskParams
 from robot_rl.task import TaskSpec, make_env
 from workspace_tools.processes import Processes, RosMaster, launch_args
+
+SECTIONS = ("lockstep", "scaling", "deep", "gazebo", "training")
+SCALING_ENVS = (1, 2, 4)
 
 
 @dataclass(frozen=True)
 class BenchRobot:
     task: TaskSpec[Any]               # the task the robot is measured on
-    steps: int                        # env steps per repetition
+    sim_seconds: float                # sim time per lockstep measurement (env steps = this / running_step)
     gazebo_steps: dict[float, int]    # Gazebo-style steps per real-time factor
 
 
-ROBOTS = {"cube": BenchRobot(ONE_DISK_WALK, 3000, {1.0: 20, 0.0: 50}),
-          "hopper": BenchRobot(STAY_UP, 10000, {1.0: 100, 0.0: 200})}
+ROBOTS = {"cube": BenchRobot(ONE_DISK_WALK, 180.0, {1.0: 20, 0.0: 50}),
+          "hopper": BenchRobot(STAY_UP, 60.0, {1.0: 100, 0.0: 200})}
+DEEP_STEPS = 4000  # env steps of DQN learning (its first learning_starts only collect)
+
+
+def _params(robot: str, running_step: float) -> TaskParams:
+    """The robot's task params from its config, with the control period the bench measures."""
+    params = ROBOTS[robot].task.default_params()
+    return params if params.running_step == running_step else params.with_changes("bench", running_step=running_step)
 
 
 # -- workers: each runs in its own process and prints one JSON line -------------------------------
-def _make_env(robot: str, backend: str):
-    return make_env(ROBOTS[robot].task, backend=backend)
+def _make_env(robot: str, backend: str, running_step: float):
+    return make_env(ROBOTS[robot].task, params=_params(robot, running_step), backend=backend)
 
 
-def worker_lockstep(robot: str, backend: str, steps: int) -> dict:
+def worker_lockstep(robot: str, backend: str, steps: int, running_step: float) -> dict:
     import numpy as np
     if backend == "ros":
         import rospy
         rospy.init_node("bench_client")
-    env = _make_env(robot, backend)
+    env = _make_env(robot, backend, running_step)
     rng = np.random.default_rng(0)
     env.reset(seed=0)
     start = time.perf_counter()
@@ -66,17 +94,99 @@ def worker_lockstep(robot: str, backend: str, steps: int) -> dict:
     return {"steps_per_s": steps / elapsed, "running_step": env.unwrapped.running_step}
 
 
-def worker_gazebo_style(robot: str, steps: int) -> dict:
+def _tree_cpu_s() -> float:
+    """CPU seconds used so far by this process and every process below it (workers, masters, sim nodes)."""
+    parents: dict[int, list[int]] = {}
+    stats: dict[int, list[str]] = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:  # gone
+                continue
+            stats[int(entry.name)] = fields
+            parents.setdefault(int(fields[1]), []).append(int(entry.name))
+    total, todo = 0.0, [os.getpid()]
+    while todo:
+        pid = todo.pop()
+        if pid in stats:
+            total += (int(stats[pid][11]) + int(stats[pid][12])) / os.sysconf("SC_CLK_TCK")
+        todo.extend(parents.get(pid, []))
+    return total
+
+
+def worker_vector(robot: str, backend: str, n: int, steps: int, running_step: float) -> dict:
+    """robot_rl.vector's gymnasium vector env of n workers: env steps/s (all workers together) and the CPU
+    time per env step of every process involved (this one, the workers, their masters and sim nodes)."""
+    import numpy as np
+
+    from robot_rl.vector import make_vector_env
+    env = make_vector_env(ROBOTS[robot].task, n, backend=backend, seed=0, params=_params(robot, running_step))
+    try:
+        rng = np.random.default_rng(0)
+        n_actions = int(env.single_action_space.n)  # type: ignore[attr-defined]
+        env.reset(seed=0)
+        vector_steps = max(1, steps // n)
+        start, cpu_start = time.perf_counter(), _tree_cpu_s()
+        for _ in range(vector_steps):
+            env.step(rng.integers(n_actions, size=n))
+        elapsed, cpu = time.perf_counter() - start, _tree_cpu_s() - cpu_start
+    finally:
+        env.close()
+    return {"steps_per_s": vector_steps * n / elapsed, "cpu_ms_per_step": 1000.0 * cpu / (vector_steps * n)}
+
+
+def worker_deep(robot: str, backend: str, steps: int, running_step: float) -> dict:
+    """Stable-Baselines3 DQN (robot_rl/config/dqn.yaml) learning `steps` env steps on one env."""
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from robot_rl.deep import build_model, load_agent_params
+    if backend == "ros":
+        import rospy
+        rospy.init_node("bench_deep_client")
+    import torch
+    torch.set_num_threads(1)  # as DeepTrainer
+    params = _params(robot, running_step)
+    env = _make_env(robot, backend, running_step)
+    try:
+        model = build_model("dqn", load_agent_params("dqn"), DummyVecEnv([lambda: env]), params.gamma, 0)
+        start = time.perf_counter()
+        model.learn(total_timesteps=steps)
+        elapsed = time.perf_counter() - start
+    finally:
+        env.close()
+    return {"steps_per_s": steps / elapsed}
+
+
+def worker_gazebo_style(robot: str, steps: int, running_step: float) -> dict:
     """The tutorials' step over ROS: unpause, command, wait running_step of sim time, pause, read."""
     import threading
 
     import numpy as np
     import rospy
+    from nav_msgs.msg import Odometry
     from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import Imu, JointState
+
+    from gazebo_msgs.msg import ContactsState
+    from pybullet_sim import messages
+    from pybullet_sim.client import CommandPublisher, SensorSubscriber
+    from robot_rl.backends import Readings
 
     rospy.init_node("bench_gazebo_style_client")
-    env = _make_env(robot, "ros").unwrapped  # only for its publishers, subscribers and action mapping
-    backend, sim = env.backend, env.backend.sim
+    env = _make_env(robot, "ros", running_step).unwrapped  # for its action mapping and observation
+    backend, sim, config = env.backend, env.backend.sim, env.backend.config
+    # The tutorials' robot classes: a publisher per controller, a subscriber per sensor, read the latest.
+    commands = {c.name: CommandPublisher(config.command_topic(c)) for c in config.controllers}
+    kinds = {"p3d": (Odometry, messages.odometry_reading), "imu": (Imu, messages.imu_reading),
+             "contact": (ContactsState, messages.contact_reading)}
+    joints = SensorSubscriber(config.joint_states_topic, JointState, messages.joint_state_reading)
+    sensors: dict[str, SensorSubscriber[Any]] = {s.name: SensorSubscriber(s.topic, *kinds[s.type])
+                                                 for s in config.sensors}
+    for publisher in commands.values():
+        publisher.wait_for_subscriber(10.0)
+    for subscriber in (joints, *sensors.values()):
+        subscriber.wait_for_connection(10.0)
     clock = {"now": rospy.Time(0)}
     changed = threading.Condition()
 
@@ -87,20 +197,23 @@ def worker_gazebo_style(robot: str, steps: int) -> dict:
     rospy.Subscriber("/clock", Clock, on_clock, tcp_nodelay=True)
     rng = np.random.default_rng(0)
     env.reset(seed=0)
-    running_step = rospy.Duration.from_sec(env.running_step)
+    period = rospy.Duration.from_sec(env.running_step)
     start = time.perf_counter()
     for _ in range(steps):
         with changed:
-            target = clock["now"] + running_step
+            target = clock["now"] + period
         sim.unpause()
         env._apply_action(int(rng.integers(env.action_space.n)), env.readings)
+        for name, value in backend.take_commands().items():  # published, as the tutorials' robot classes do
+            commands[name].publish(value)
+
         def reached(target: rospy.Time = target) -> bool:
             return clock["now"] >= target
         with changed:
             if not changed.wait_for(reached, 10.0):
                 raise RuntimeError("/clock did not advance by running_step within 10 s")
         sim.pause()
-        readings = backend.latest()
+        readings = Readings(joints.latest, {name: s.latest for name, s in sensors.items()})  # type: ignore[arg-type,misc]
         env.readings = readings
         env._observe(readings)
     elapsed = time.perf_counter() - start
@@ -110,9 +223,9 @@ def worker_gazebo_style(robot: str, steps: int) -> dict:
 
 # -- orchestration ------------------------------------------------------------------------------
 def _run_worker(processes: Processes, args: list, timeout: float) -> dict:
-    result = processes.run([sys.executable, __file__, "--worker", *args], timeout=timeout)
+    result = processes.run([sys.executable, __file__, "--worker", *map(str, args)], timeout=timeout)
     if result.returncode != 0:
-        raise RuntimeError(f"bench worker {' '.join(args)} failed:\n{result.stderr[-3000:]}")
+        raise RuntimeError(f"bench worker {' '.join(map(str, args))} failed:\n{result.stderr[-3000:]}")
     return json.loads(result.stdout.strip().splitlines()[-1])
 
 
@@ -132,7 +245,7 @@ def _cube_training_wall_time(log_dir: Path, episodes: int) -> float:
     results = log_dir / "results"
     try:
         result = master.run(["rosrun", "workspace_tools", "roslaunch_checked.py", "moving_cube_training", "main.launch",
-                             *launch_args(results_dir=results, nepisodes=episodes)], timeout=900)
+                             *launch_args(results_dir=results, nepisodes=episodes, video="false")], timeout=900)
     finally:
         master.close()
     if result.returncode != 0:
@@ -150,81 +263,185 @@ def _machine() -> str:
             f"pybullet {version('pybullet')}")
 
 
-def orchestrate(reps: int, output: Path) -> dict:
-    samples: dict[str, dict[str, list[float]]] = {
-        robot: {k: [] for k in ("ros", "direct", "ratio", "gazebo_1", "gazebo_0")} for robot in ROBOTS}
+def _log(message: str) -> None:
+    print(f"[bench] {message}", file=sys.stderr, flush=True)
+
+
+def _rep(tmp: Path, rep: int, robot: str, running_step: float, sections: set[str], samples: dict) -> None:
+    """One repetition of every section for one robot, each configuration in fresh processes."""
+    spec, s = ROBOTS[robot], samples[robot]
+    steps = round(spec.sim_seconds / running_step)
+    tag = f"{tmp}/{rep}-{robot}"
+    if "lockstep" in sections:
+        ros = _with_sim(Path(f"{tag}-ros"), robot, 0.0, ["lockstep", robot, "ros", steps, running_step])
+        direct = _run_worker(Processes(Path(f"{tag}-direct")), ["lockstep", robot, "direct", steps, running_step],
+                             timeout=600)
+        s["ros"].append(ros["steps_per_s"])
+        s["direct"].append(direct["steps_per_s"])
+        s["ratio"].append(ros["steps_per_s"] / direct["steps_per_s"])
+        _log(f"rep {rep + 1} {robot}: one env over ROS {ros['steps_per_s']:.0f}/s, "
+             f"direct {direct['steps_per_s']:.0f}/s")
+    if "scaling" in sections:
+        for backend in ("ros", "direct"):
+            rates = {}
+            for n in SCALING_ENVS:
+                result = _run_worker(Processes(Path(f"{tag}-vector-{backend}-{n}")),
+                                     ["vector", robot, backend, n, steps * n, running_step], timeout=900)
+                rates[n] = result["steps_per_s"]
+                s[f"{backend}_vector_{n}"].append(rates[n])
+                s[f"{backend}_cpu_{n}"].append(result["cpu_ms_per_step"])
+            for n in SCALING_ENVS[1:]:
+                s[f"{backend}_efficiency_{n}"].append(rates[n] / (n * rates[1]))
+            _log(f"rep {rep + 1} {robot}: vector env {backend}: " + ", ".join(
+                f"N={n} {rate:.0f}/s" for n, rate in rates.items()))
+    if "deep" in sections:
+        ros = _with_sim(Path(f"{tag}-deep-ros"), robot, 0.0, ["deep", robot, "ros", DEEP_STEPS, running_step])
+        direct = _run_worker(Processes(Path(f"{tag}-deep-direct")), ["deep", robot, "direct", DEEP_STEPS,
+                                                                     running_step], timeout=900)
+        s["deep_ros"].append(ros["steps_per_s"])
+        s["deep_direct"].append(direct["steps_per_s"])
+        s["deep_ratio"].append(ros["steps_per_s"] / direct["steps_per_s"])
+        _log(f"rep {rep + 1} {robot}: DQN over ROS {ros['steps_per_s']:.0f}/s, direct {direct['steps_per_s']:.0f}/s")
+    if "gazebo" in sections:
+        for rtf, gazebo_steps in spec.gazebo_steps.items():
+            style = _with_sim(Path(f"{tag}-gazebo{rtf}"), robot, rtf, ["gazebo", robot, gazebo_steps, running_step])
+            s[f"gazebo_{int(rtf)}"].append(style["steps_per_s"])
+
+
+def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sections: set[str]) -> dict:
+    samples: dict[str, dict[str, list[float]]] = {robot: defaultdict(list) for robot in ROBOTS}
     cube_training = []
-    running_steps = {}
     with tempfile.TemporaryDirectory(prefix="bench-") as tmp_dir:
         tmp = Path(tmp_dir)
         for rep in range(reps):
-            for robot, spec in ROBOTS.items():
-                steps = str(spec.steps)
-                ros = _with_sim(tmp / f"{rep}-{robot}-ros", robot, 0.0, ["lockstep", robot, "ros", steps])
-                direct = _run_worker(Processes(tmp / f"{rep}-{robot}-direct"), ["lockstep", robot, "direct", steps],
-                                     timeout=600)
-                running_steps[robot] = ros["running_step"]
-                samples[robot]["ros"].append(ros["steps_per_s"])
-                samples[robot]["direct"].append(direct["steps_per_s"])
-                samples[robot]["ratio"].append(ros["steps_per_s"] / direct["steps_per_s"])
-                for rtf, gazebo_steps in spec.gazebo_steps.items():
-                    style = _with_sim(tmp / f"{rep}-{robot}-gazebo{rtf}", robot, rtf,
-                                      ["gazebo", robot, str(gazebo_steps)])
-                    samples[robot][f"gazebo_{int(rtf)}"].append(style["steps_per_s"])
-                print(f"[bench] rep {rep + 1}/{reps} {robot}: ros {ros['steps_per_s']:.0f}/s, "
-                      f"direct {direct['steps_per_s']:.0f}/s", file=sys.stderr, flush=True)
-            cube_training.append(_cube_training_wall_time(tmp / f"{rep}-training", 100))
-            print(f"[bench] rep {rep + 1}/{reps}: 100 cube training episodes in {cube_training[-1]:.1f} s",
-                  file=sys.stderr, flush=True)
+            for robot in ROBOTS:
+                _rep(tmp, rep, robot, running_steps[robot], sections, samples)
+            if "training" in sections:
+                cube_training.append(_cube_training_wall_time(tmp / f"{rep}-training", 100))
+                _log(f"rep {rep + 1}/{reps}: 100 cube training episodes in {cube_training[-1]:.1f} s")
     median = statistics.median
-    report = {"machine": _machine(), "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
-              "repetitions": reps}
+    report: dict[str, Any] = {
+        "machine": _machine(), "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
+        "load_average_at_end": os.getloadavg()[0], "repetitions": reps, "sections": sorted(sections)}
     for robot in ROBOTS:
         s = samples[robot]
-        report[robot] = {
-            "ros_lockstep_steps_per_s": median(s["ros"]),
-            "direct_steps_per_s": median(s["direct"]),
-            "ratio_ros_to_direct": median(s["ratio"]),
-            "ros_lockstep_real_time_factor": median(s["ros"]) * running_steps[robot],
-            "gazebo_style_rtf1_steps_per_s": median(s["gazebo_1"]),
-            "gazebo_style_max_speed_steps_per_s": median(s["gazebo_0"]),
-        }
-    report["cube_100_episodes_wall_s"] = median(cube_training)
+        r: dict[str, Any] = {"running_step": running_steps[robot],
+                             "config_running_step": ROBOTS[robot].task.default_params().running_step}
+        if "lockstep" in sections:
+            r.update(ros_lockstep_steps_per_s=median(s["ros"]), direct_steps_per_s=median(s["direct"]),
+                     ratio_ros_to_direct=median(s["ratio"]),
+                     ros_lockstep_real_time_factor=median(s["ros"]) * running_steps[robot])
+        if "scaling" in sections:
+            r["scaling"] = {backend: {
+                "envs": list(SCALING_ENVS),
+                "steps_per_s": {str(n): median(s[f"{backend}_vector_{n}"]) for n in SCALING_ENVS},
+                "parallel_efficiency": {str(n): median(s[f"{backend}_efficiency_{n}"]) for n in SCALING_ENVS[1:]},
+                "speedup": {str(n): n * median(s[f"{backend}_efficiency_{n}"]) for n in SCALING_ENVS[1:]},
+                "cpu_ms_per_step": {str(n): median(s[f"{backend}_cpu_{n}"]) for n in SCALING_ENVS},
+            } for backend in ("ros", "direct")}
+        if "deep" in sections:
+            r["dqn"] = {"steps": DEEP_STEPS, "ros_steps_per_s": median(s["deep_ros"]),
+                        "direct_steps_per_s": median(s["deep_direct"]), "ratio_ros_to_direct": median(s["deep_ratio"])}
+        if "gazebo" in sections:
+            r.update(gazebo_style_rtf1_steps_per_s=median(s["gazebo_1"]),
+                     gazebo_style_max_speed_steps_per_s=median(s["gazebo_0"]))
+        report[robot] = r
+    if "training" in sections:
+        report["cube_100_episodes_wall_s"] = median(cube_training)
     output.write_text(json.dumps(report, indent=2) + "\n")
     return report
 
 
-def print_table(report: dict) -> None:
-    rows = [("ROS lockstep env steps/s", "ros_lockstep_steps_per_s", "{:.0f}"),
-            ("in-process (direct) env steps/s", "direct_steps_per_s", "{:.0f}"),
-            ("ROS / direct", "ratio_ros_to_direct", "{:.2f}"),
-            ("ROS lockstep x real time", "ros_lockstep_real_time_factor", "{:.1f}"),
-            ("Gazebo-style step at RTF 1, steps/s", "gazebo_style_rtf1_steps_per_s", "{:.1f}"),
-            ("Gazebo-style step at max speed, steps/s", "gazebo_style_max_speed_steps_per_s", "{:.1f}")]
-    print(f"\n{report['machine']}\n{report['date']}, median of {report['repetitions']} repetitions\n")
-    print(f"| {'':42} | {'cube':>8} | {'hopper':>8} |")
-    print(f"|{'-' * 44}|{'-' * 10}|{'-' * 10}|")
-    for label, key, fmt in rows:
-        print(f"| {label:42} | {fmt.format(report['cube'][key]):>8} | {fmt.format(report['hopper'][key]):>8} |")
+def _row(report: dict, label: str, value: Any, fmt: str) -> None:
+    cells = []
     for robot in ROBOTS:
-        r = report[robot]
-        ratio = r['ros_lockstep_steps_per_s'] / r['gazebo_style_rtf1_steps_per_s']
-        print(f"{robot}: lockstep over ROS is {ratio:.0f}x the Gazebo-style step at RTF 1")
-    print(f"cube: 100 training episodes over ROS in {report['cube_100_episodes_wall_s']:.1f} s")
+        try:
+            cells.append(fmt.format(value(report[robot])))
+        except KeyError:
+            cells.append("")
+    print(f"| {label:52} | " + " | ".join(f"{cell:>8}" for cell in cells) + " |")
+
+
+def print_table(report: dict) -> None:
+    print(f"\n{report['machine']}\n{report['date']}, median of {report['repetitions']} repetitions, load average "
+          f"{report['load_average_at_end']:.2f} at the end\n")
+    print(f"| {'':52} | " + " | ".join(f"{robot:>8}" for robot in ROBOTS) + " |")
+    print(f"|{'-' * 54}|" + "|".join("-" * 9 + ":" for _ in ROBOTS) + "|")
+    _row(report, "running_step (s)", lambda r: r["running_step"], "{:g}")
+    rows = [("one env over ROS (lockstep), env steps/s", "ros_lockstep_steps_per_s", "{:.0f}"),
+            ("one env direct (in-process), env steps/s", "direct_steps_per_s", "{:.0f}"),
+            ("ROS / direct", "ratio_ros_to_direct", "{:.2f}"),
+            ("ROS lockstep x real time", "ros_lockstep_real_time_factor", "{:.1f}")]
+    for label, key, fmt in rows:
+        _row(report, label, lambda r, key=key: r[key], fmt)
+    for backend in ("ros", "direct"):
+        for n in SCALING_ENVS:
+            _row(report, f"vector env, {backend}, N = {n}, env steps/s",
+                 lambda r, backend=backend, n=n: r["scaling"][backend]["steps_per_s"][str(n)], "{:.0f}")
+        for n in SCALING_ENVS:
+            _row(report, f"vector env, {backend}, N = {n}, CPU ms per env step",
+                 lambda r, backend=backend, n=n: r["scaling"][backend]["cpu_ms_per_step"][str(n)], "{:.2f}")
+        for n in SCALING_ENVS[1:]:
+            _row(report, f"vector env, {backend}, N = {n}: speedup over N = 1",
+                 lambda r, backend=backend, n=n: r["scaling"][backend]["speedup"][str(n)], "{:.2f}")
+            _row(report, f"vector env, {backend}, N = {n}: parallel efficiency",
+                 lambda r, backend=backend, n=n: r["scaling"][backend]["parallel_efficiency"][str(n)], "{:.2f}")
+    _row(report, "DQN learning over ROS, env steps/s", lambda r: r["dqn"]["ros_steps_per_s"], "{:.0f}")
+    _row(report, "DQN learning direct, env steps/s", lambda r: r["dqn"]["direct_steps_per_s"], "{:.0f}")
+    _row(report, "DQN: ROS / direct", lambda r: r["dqn"]["ratio_ros_to_direct"], "{:.2f}")
+    _row(report, "Gazebo-style step at RTF 1, steps/s", lambda r: r["gazebo_style_rtf1_steps_per_s"], "{:.1f}")
+    _row(report, "Gazebo-style step at max speed, steps/s", lambda r: r["gazebo_style_max_speed_steps_per_s"],
+         "{:.1f}")
+    if "cube_100_episodes_wall_s" in report:
+        print(f"cube: 100 training episodes over ROS in {report['cube_100_episodes_wall_s']:.1f} s")
+
+
+def _running_step(text: str) -> tuple[str, float]:
+    robot, _, value = text.partition("=")
+    try:
+        seconds = float(value)
+    except ValueError:
+        seconds = math.nan
+    if robot not in ROBOTS or not seconds > 0.0:
+        raise argparse.ArgumentTypeError(f"{text!r} is not ROBOT=SECONDS with ROBOT one of {', '.join(ROBOTS)}, "
+                                         f"e.g. hopper=0.02")
+    return robot, seconds
+
+
+def _sections(text: str) -> set[str]:
+    chosen = set(text.split(","))
+    if not chosen <= set(SECTIONS):
+        raise argparse.ArgumentTypeError(f"unknown section(s) {', '.join(sorted(chosen - set(SECTIONS)))} "
+                                         f"(known: {', '.join(SECTIONS)})")
+    return chosen
 
 
 def main(argv) -> int:
     if argv and argv[0] == "--worker":
         kind, robot, *rest = argv[1:]
-        result = (worker_lockstep(robot, rest[0], int(rest[1])) if kind == "lockstep"
-                  else worker_gazebo_style(robot, int(rest[0])))
+        if kind == "lockstep":
+            result = worker_lockstep(robot, rest[0], int(rest[1]), float(rest[2]))
+        elif kind == "vector":
+            result = worker_vector(robot, rest[0], int(rest[1]), int(rest[2]), float(rest[3]))
+        elif kind == "deep":
+            result = worker_deep(robot, rest[0], int(rest[1]), float(rest[2]))
+        else:
+            result = worker_gazebo_style(robot, int(rest[0]), float(rest[1]))
         print(json.dumps(result))
         return 0
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--reps", type=int, default=5, help="repetitions (fresh processes each); figures are medians")
+    parser.add_argument("--reps", type=int, default=3, help="repetitions (fresh processes each); figures are medians")
     parser.add_argument("--output", type=Path, default=Path("bench_results.json"))
+    parser.add_argument("--running-step", type=_running_step, action="append", default=[], metavar="ROBOT=S",
+                        help="measure ROBOT at this control period instead of its config's (e.g. hopper=0.02)")
+    parser.add_argument("--sections", type=_sections, default=set(SECTIONS),
+                        help=f"comma-separated, of {', '.join(SECTIONS)} (default: all)")
     args = parser.parse_args(argv)
-    print_table(orchestrate(args.reps, args.output))
+    if args.reps < 1:
+        parser.error("--reps must be >= 1")
+    running_steps = {robot: spec.task.default_params().running_step for robot, spec in ROBOTS.items()}
+    running_steps.update(dict(args.running_step))
+    print_table(orchestrate(args.reps, args.output, running_steps, args.sections))
     print(f"\nwritten: {args.output}")
     return 0
 

@@ -1,5 +1,5 @@
-"""Client side of the sim: Gazebo's services, the lockstep step, counted command publishers and
-sensor subscribers that wait (bounded) for fresh readings.
+"""Client side of the sim: Gazebo's services, the lockstep step and reset (answered with every sensor's
+message), counted command publishers and sensor subscribers that wait (bounded) for fresh readings.
 
 Every wait here has a timeout and fails with a SimConnectionError naming the topic or service and
 what to check. Service proxies are persistent (one socket for the whole run).
@@ -19,11 +19,13 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Empty
 
 from gazebo_msgs.srv import GetPhysicsProperties
-from pybullet_sim.srv import Render, RenderRequest, Step, StepRequest
+from pybullet_sim.msg import Readings
+from pybullet_sim.srv import Render, RenderRequest, Reset, Step, StepRequest, StepResponse
 
 from .messages import image_array
 
 STEP_SERVICE = "/pybullet_sim/step"
+RESET_SERVICE = "/pybullet_sim/reset"
 RENDER_SERVICE = "/pybullet_sim/render"
 PHYSICS_SERVICE = "/gazebo/get_physics_properties"
 GAZEBO_SERVICES = ("/gazebo/pause_physics", "/gazebo/unpause_physics", "/gazebo/reset_world",
@@ -182,13 +184,13 @@ class CallWatchdog:
 
 
 class SimConnection:
-    """pause / unpause / reset_world / reset_simulation / step / is_paused on the sim node, every call
-    bounded by `timeout` seconds of wall time."""
+    """pause / unpause / reset_world / reset_simulation / step / reset / is_paused on the sim node, every
+    call bounded by `timeout` seconds of wall time."""
 
     def __init__(self, timeout: float = 10.0, hint: str = HINT):
         self.timeout = timeout
         self.hint = hint
-        for name in GAZEBO_SERVICES + (STEP_SERVICE, PHYSICS_SERVICE):
+        for name in GAZEBO_SERVICES + (STEP_SERVICE, RESET_SERVICE, PHYSICS_SERVICE):
             try:
                 rospy.wait_for_service(name, timeout)
             except rospy.ROSInterruptException:
@@ -197,6 +199,7 @@ class SimConnection:
                 raise SimConnectionError(f"service {name} is not available after {timeout} s; {hint}") from None
         self._empty = {name: rospy.ServiceProxy(name, Empty, persistent=True) for name in GAZEBO_SERVICES}
         self._step = rospy.ServiceProxy(STEP_SERVICE, Step, persistent=True)
+        self._reset = rospy.ServiceProxy(RESET_SERVICE, Reset, persistent=True)
         self._physics = rospy.ServiceProxy(PHYSICS_SERVICE, GetPhysicsProperties, persistent=True)
         self._request = StepRequest()
         self._render: rospy.ServiceProxy | None = None  # made on the first render()
@@ -244,7 +247,21 @@ class SimConnection:
         request.steps = steps
         request.command_topics = [c.topic for c in commands]
         request.command_counts = [c.count for c in commands]
+        request.controllers, request.commands, request.return_readings = [], [], False
         return self._call(STEP_SERVICE, self._step, request).stamp
+
+    def step_with(self, steps: int, controllers: list[str], values: list[float]) -> StepResponse:
+        """Command `controllers` to `values`, advance the paused sim `steps` physics steps, and return the
+        answer: the new sim time and every sensor's message of it (`readings`)."""
+        request = self._request
+        request.steps = steps
+        request.command_topics, request.command_counts = [], []
+        request.controllers, request.commands, request.return_readings = controllers, values, True
+        return self._call(STEP_SERVICE, self._step, request)
+
+    def reset(self, restart_time: bool) -> Readings:
+        """Gazebo's reset_world (or with `restart_time` reset_simulation); returns every sensor's message after it."""
+        return self._call(RESET_SERVICE, self._reset, restart_time).readings
 
     def render(self, width: int, height: int) -> np.ndarray:
         """An RGB image (height x width x 3, uint8) of the robot from the sim's following camera."""
@@ -259,6 +276,7 @@ class SimConnection:
 
     def close(self) -> None:
         self._watchdog.close()
-        for proxy in (*self._empty.values(), self._step, self._physics, *([self._render] if self._render else [])):
+        for proxy in (*self._empty.values(), self._step, self._reset, self._physics,
+                      *([self._render] if self._render else [])):
             proxy.close()
 

@@ -21,7 +21,7 @@ from geometry_msgs.msg import Point
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker
 
-from pybullet_sim.msg import ContactsState
+from gazebo_msgs.msg import ContactsState
 
 from .config import ConfigError, SensorConfig, parse_robot_config
 

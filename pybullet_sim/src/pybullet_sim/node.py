@@ -4,8 +4,11 @@ Params (private) -> a World; World readings -> messages; Gazebo's services -> Wo
 owns /clock (every node runs with use_sim_time). Two states as in Gazebo: running, where the main
 loop advances physics at ~real_time_factor x wall time (0 = as fast as possible) and publishes each
 sensor at its own rate of sim time, and paused, where time only moves through the lockstep service
-~step (pybullet_sim/Step), which publishes every sensor once per call. ~render (pybullet_sim/Render)
-answers an RGB image of the robot from the World's following camera.
+~step (pybullet_sim/Step), which publishes every sensor once per call and can answer with those very
+messages (pybullet_sim/Readings), so that a lockstep client needs one service call per step and no
+subscription; ~reset (pybullet_sim/Reset) is Gazebo's reset_world or reset_simulation answered the
+same way. ~render (pybullet_sim/Render) answers an RGB image of the robot from the World's following
+camera.
 
 Services, with Gazebo's names and types: /gazebo/{pause,unpause}_physics, reset_{simulation,world}
 (std_srvs/Empty), /gazebo/{get,set}_physics_properties, get_world_properties, {get,set}_model_state,
@@ -60,10 +63,11 @@ from gazebo_msgs.srv import (
     SetPhysicsProperties,
     SetPhysicsPropertiesResponse,
 )
-from pybullet_sim.srv import Render, RenderResponse, Step, StepRequest, StepResponse
+from pybullet_sim.msg import Readings
+from pybullet_sim.srv import Render, RenderResponse, Reset, ResetResponse, Step, StepRequest, StepResponse
 
 from . import messages, physics_properties
-from .client import RENDER_SERVICE, STEP_SERVICE, synchronous_publisher
+from .client import RENDER_SERVICE, RESET_SERVICE, STEP_SERVICE, synchronous_publisher
 from .config import ConfigError, SensorConfig, parse_robot_config
 from .controller_manager import ControllerManager
 from .physics_properties import OdeConfig, PhysicsProperties
@@ -71,6 +75,7 @@ from .world import UrdfError, World, absolute_state, relative_state
 
 _SENSOR_MESSAGES = {"p3d": (Odometry, messages.odometry_msg), "imu": (Imu, messages.imu_msg),
                     "contact": (ContactsState, messages.contacts_msg)}
+READINGS_FIELDS = {"p3d": "odometry", "imu": "imu", "contact": "contacts"}  # pybullet_sim/Readings, per sensor type
 WORLD_FRAMES = ("", "world", "map", "/map")  # the names gazebo_ros takes for the world frame
 STEP_BATCH = 10  # physics steps between two looks at the clock during a lockstep call
 STEP_SLICE = 0.02  # s of wall time a lockstep call holds the World before it lets other services in
@@ -155,6 +160,7 @@ class SimNode:
         self._make_schedules()
 
         self._command_topics = {}
+        self._controller_names = {controller.name for controller in self.config.controllers}
         for controller in self.config.controllers:
             topic = rospy.resolve_name(self.config.command_topic(controller))
             self._command_topics[topic] = controller.name
@@ -164,6 +170,7 @@ class SimNode:
         rospy.Service("/gazebo/reset_simulation", Empty, self._handle_reset_simulation)
         rospy.Service("/gazebo/reset_world", Empty, self._handle_reset_world)
         rospy.Service(STEP_SERVICE, Step, self._handle_step)
+        rospy.Service(RESET_SERVICE, Reset, self._handle_reset)
         for name, srv_type, handler in (
                 ("get_physics_properties", GetPhysicsProperties, self._handle_get_physics),
                 ("set_physics_properties", SetPhysicsProperties, self._handle_set_physics),
@@ -178,6 +185,7 @@ class SimNode:
         rospy.Service(f"{manager}/load_controller", LoadController, self._handle_load_controller)
         rospy.Service(f"{manager}/unload_controller", UnloadController, self._handle_unload_controller)
         rospy.Service(RENDER_SERVICE, Render, self._handle_render)
+        rospy.on_shutdown(self._wake_main_loop)
         with self._lock:
             self._publish_all(force_clock=True)
         rospy.loginfo("pybullet_sim: %s loaded, time step %.4f s, %s, real_time_factor %.2f",
@@ -185,6 +193,11 @@ class SimNode:
                       self.real_time_factor)
 
     # -- helpers --------------------------------------------------------------------------------
+    def _wake_main_loop(self) -> None:
+        """On shutdown: the paused main loop ends now, not after its next timed wait."""
+        with self._lock:
+            self._run_state.notify_all()
+
     @contextmanager
     def _exclusive(self):
         """Hold the World lock from a callback thread, asking the free-running loop to step aside."""
@@ -201,15 +214,23 @@ class SimNode:
         nanoseconds = self.world.time_ns
         return rospy.Time(nanoseconds // 1_000_000_000, nanoseconds % 1_000_000_000)
 
-    def _publish_joint_states(self, stamp):
-        if self.controllers.joint_states_running:  # a stopped joint_state_controller publishes nothing
-            self._joint_pub.publish(messages.joint_state_msg(self.world.read_joint_states(), stamp))
+    def _publish_joint_states(self, stamp) -> JointState:
+        """Publish joint_states (a stopped joint_state_controller publishes nothing: then an empty message)."""
+        if not self.controllers.joint_states_running:
+            msg = JointState()
+            msg.header.stamp = stamp
+            return msg
+        msg = messages.joint_state_msg(self.world.read_joint_states(), stamp)
+        self._joint_pub.publish(msg)
+        return msg
 
     def _publish_sensor(self, sensor: SensorConfig, publisher, to_msg, stamp):
-        publisher.publish(to_msg(self.world.read_sensor(sensor), stamp))
+        msg = to_msg(self.world.read_sensor(sensor), stamp)
+        publisher.publish(msg)
         if sensor.type == "p3d" and self._tf.pub_tf.get_num_connections():
             position, orientation = self.world.link_pose(sensor.link)
             self._tf.sendTransform(messages.transform_msg(sensor.frame_id, sensor.link, position, orientation, stamp))
+        return msg
 
     def _publish_clock(self, stamp, force: bool = False):
         """/clock at most ~pub_clock_frequency times per wall second, as gazebo_ros throttles it."""
@@ -218,13 +239,16 @@ class SimNode:
             self._last_clock_wall = now
             self._clock_pub.publish(Clock(clock=stamp))
 
-    def _publish_all(self, force_clock: bool = False):
-        """Publish every sensor once stamped now (after a lockstep step or a reset), and /clock if due."""
+    def _publish_all(self, force_clock: bool = False) -> Readings:
+        """Publish every sensor once stamped now (after a lockstep step or a reset), and /clock if due;
+        returns the messages published."""
         stamp = self._stamp()
         self._publish_clock(stamp, force_clock)
-        self._publish_joint_states(stamp)
+        readings = Readings(joint_states=self._publish_joint_states(stamp))
         for sensor, publisher, to_msg in self._sensor_pubs:
-            self._publish_sensor(sensor, publisher, to_msg, stamp)
+            msg = self._publish_sensor(sensor, publisher, to_msg, stamp)
+            getattr(readings, READINGS_FIELDS[sensor.type]).append(msg)
+        return readings
 
     def _publish_due(self):
         """While running: publish what is due at the current step, each stream at its own rate."""
@@ -266,17 +290,21 @@ class SimNode:
                                                  f"sim node is shutting down")
                 slice_end = time.monotonic() + STEP_SLICE
 
+    def _command(self, controller: str, value: float, where: str, caller: str) -> None:
+        """Command a controller (World lock held); a non-finite value is ignored with a throttled warning."""
+        if not self.world.set_command(controller, value):
+            now = time.monotonic()
+            if now - self._last_bad_command_warning > 5.0:
+                self._last_bad_command_warning = now
+                rospy.logwarn("pybullet_sim: ignored non-finite command %r on %s from %s (the command stays %g; "
+                              "this warning is throttled to one per 5 s)", value, where, caller,
+                              self.world.command(controller))
+
     # -- callbacks ------------------------------------------------------------------------------
     def _on_command(self, msg: Float64, topic: str):
         caller = msg._connection_header.get("callerid", "") if hasattr(msg, "_connection_header") else ""
         with self._exclusive():
-            if not self.world.set_command(self._command_topics[topic], msg.data):
-                now = time.monotonic()
-                if now - self._last_bad_command_warning > 5.0:
-                    self._last_bad_command_warning = now
-                    rospy.logwarn("pybullet_sim: ignored non-finite command %r on %s from %s (the command stays "
-                                  "%g; this warning is throttled to one per 5 s)", msg.data, topic, caller,
-                                  self.world.command(self._command_topics[topic]))
+            self._command(self._command_topics[topic], msg.data, topic, caller)
             key = (topic, caller)
             self._received[key] = self._received.get(key, 0) + 1
             self._commands_arrived.notify_all()
@@ -319,6 +347,12 @@ class SimNode:
         if unknown:
             raise rospy.ServiceException(f"{STEP_SERVICE}: no controller listens on {', '.join(unknown)} "
                                          f"(command topics: {', '.join(sorted(self._command_topics))})")
+        if len(request.controllers) != len(request.commands):
+            raise rospy.ServiceException(f"{STEP_SERVICE}: controllers and commands differ in length")
+        unknown = [c for c in request.controllers if c not in self._controller_names]
+        if unknown:
+            raise rospy.ServiceException(f"{STEP_SERVICE}: no controller named {', '.join(unknown)} "
+                                         f"(controllers: {', '.join(sorted(self._controller_names))})")
         announced = list(zip(request.command_topics, request.command_counts))
         with self._exclusive():
             if not self._paused:
@@ -332,9 +366,22 @@ class SimNode:
                 raise rospy.ServiceException(
                     f"{STEP_SERVICE}: commands from {caller} did not arrive within {self.command_timeout} s on "
                     f"{'; '.join(missing)}; check that the publisher is connected to the sim node")
+            for controller, value in zip(request.controllers, request.commands):
+                self._command(controller, value, f"{STEP_SERVICE} (controller {controller})", caller)
             self._step_world(request.steps)
-            self._publish_all()
+            readings = self._publish_all()
+            if request.return_readings:
+                return StepResponse(stamp=self._stamp(), readings=readings)
             return StepResponse(stamp=self._stamp())
+
+    def _handle_reset(self, request):
+        with self._exclusive():
+            if request.restart_time:
+                self.world.reset_simulation()
+                self._restart_schedules()
+            else:
+                self.world.reset_world()
+            return ResetResponse(readings=self._publish_all(force_clock=True))
 
     # -- Gazebo's physics, world and model services ---------------------------------------------
     def _handle_get_physics(self, _request):

@@ -3,8 +3,9 @@
 Both backends expose the same three calls, each returning the same `Readings`:
 `reset(restart_time)`, `set_command(controller, value)` + `step(physics_steps)`; and the same
 `render(width, height)`, an RGB frame from the sim's camera that follows the robot. The ROS backend
-is lockstep: commands are published, one call to the sim's step service advances the paused sim
-exactly N physics steps, and the backend waits (bounded) for every sensor stamped at the new time.
+is lockstep: one call of the sim's step service carries the commands, advances the paused sim exactly
+N physics steps and answers with every sensor's message of the new time (which the sim also
+publishes on the sensors' topics).
 The direct backend makes the same calls on an in-process World and reads every sensor once per
 call, as the sim node publishes them once, so the same seed and actions give the same readings.
 """
@@ -148,21 +149,22 @@ def init_ros_node(name: str) -> None:
 
 
 class RosBackend(Backend):
-    """The robot behind a running sim node, in lockstep over ROS topics and services.
+    """The robot behind a running sim node, in lockstep over ROS services.
 
-    The robot (topics, controllers, sensors) is read from the sim node's own parameters, so the
-    env and the sim cannot disagree; `robot` is the robot the caller expects, checked against them.
+    A step is one call of the sim's step service: it carries the commands set since the last step,
+    advances the paused sim, and answers with every sensor's message of the new time (the messages
+    the sim also publishes on the sensors' topics for other subscribers), so the env waits on one
+    socket and never on a topic. Resets go through the sim's reset service, answered the same way.
+    The robot (topics, controllers, sensors) is read from the sim node's own parameters, so the env
+    and the sim cannot disagree; `robot` is the robot the caller expects, checked against them.
     Makes this process a ROS node (init_ros_node) if it is not one yet. Pauses the sim for lockstep;
     close() leaves it running again if it was running before."""
 
     def __init__(self, robot: RobotSpec, timeout: float = 10.0, sim_node: str = SIM_NODE):
         import rospy
-        from nav_msgs.msg import Odometry
-        from sensor_msgs.msg import Imu, JointState
 
-        from gazebo_msgs.msg import ContactsState
         from pybullet_sim import messages
-        from pybullet_sim.client import CommandPublisher, SensorSubscriber, SimConnection, SimConnectionError
+        from pybullet_sim.client import SimConnection, SimConnectionError
 
         init_ros_node("robot_rl_env")
         hint = f"is the sim node running? (e.g. {robot.sim_launch})"
@@ -180,64 +182,56 @@ class RosBackend(Backend):
                                      f"{expected.robot_namespace} ({robot.sim_config_path}): start {robot.sim_launch}")
         self.time_step = float(params.get("time_step", 0.001))
         self.gui = bool(params.get("gui", False))  # whether the sim node shows PyBullet's window
-        self._commands: dict[str, CommandPublisher] = {
-            c.name: CommandPublisher(self.config.command_topic(c), hint) for c in self.config.controllers}
-        kinds = {"p3d": (Odometry, messages.odometry_reading), "imu": (Imu, messages.imu_reading),
-                 "contact": (ContactsState, messages.contact_reading)}
-        self._joints = SensorSubscriber(self.config.joint_states_topic, JointState, messages.joint_state_reading,
-                                        hint)
-        self._sensors: dict[str, SensorSubscriber[Any]] = {
-            s.name: SensorSubscriber(s.topic, *kinds[s.type], hint) for s in self.config.sensors}
-        self._subscribers: list[SensorSubscriber[Any]] = [self._joints, *self._sensors.values()]
-        for publisher in self._commands.values():
-            publisher.wait_for_subscriber(timeout)
-        for subscriber in self._subscribers:
-            subscriber.wait_for_connection(timeout)
+        self._controllers = {c.name for c in self.config.controllers}
+        self._pending: dict[str, float] = {}  # commands for the next step
+        # Readings.msg holds each sensor type's messages in config order: (sensor name, field, index, converter).
+        fields = {"p3d": ("odometry", messages.odometry_reading), "imu": ("imu", messages.imu_reading),
+                  "contact": ("contacts", messages.contact_reading)}
+        counts: dict[str, int] = {}
+        self._layout: list[tuple[str, str, int, Any]] = []
+        for sensor in self.config.sensors:
+            field, convert = fields[sensor.type]
+            self._layout.append((sensor.name, field, counts.get(field, 0), convert))
+            counts[field] = counts.get(field, 0) + 1
+        self._joint_state_reading = messages.joint_state_reading
         self._was_running = not self.sim.is_paused()  # close() leaves the sim as it found it
         self.sim.pause()
 
-    def _wait(self, marks: list[int], stamp: Any = None) -> Readings:
-        joints = self._joints.wait_newer(marks[0], self.timeout, stamp)
-        sensors = {name: subscriber.wait_newer(mark, self.timeout, stamp)
-                   for (name, subscriber), mark in zip(self._sensors.items(), marks[1:])}
-        return Readings(joints, sensors)
-
-    def _marks(self) -> list[int]:
-        return [s.count for s in self._subscribers]
-
-    def latest(self) -> Readings:
-        """The last reading of every sensor, without waiting (the tutorials' way of reading)."""
+    def _readings(self, msg: Any) -> Readings:
+        """Readings from a pybullet_sim/Readings message."""
         from pybullet_sim.client import SimConnectionError
-        joints, sensors = self._joints.latest, {name: s.latest for name, s in self._sensors.items()}
-        missing = [s.topic for s in self._subscribers if s.latest is None]
-        if joints is None or missing:
-            raise SimConnectionError(f"no message yet on {', '.join(missing)}")
-        return Readings(joints, {name: reading for name, reading in sensors.items() if reading is not None})
+        try:
+            sensors = {name: convert(getattr(msg, field)[index]) for name, field, index, convert in self._layout}
+        except IndexError:
+            raise SimConnectionError(f"the sim's answer lacks sensors of {', '.join(n for n, *_ in self._layout)} "
+                                     f"(does the sim node run another version of pybullet_sim?)") from None
+        return Readings(self._joint_state_reading(msg.joint_states), sensors)
 
     def reset(self, restart_time: bool = False) -> Readings:
-        marks = self._marks()
-        if restart_time:
-            self.sim.reset_simulation()
-        else:
-            self.sim.reset_world()
-        return self._wait(marks)
+        self._pending = {}  # a reset restarts the controllers, as in the World: earlier commands are gone
+        return self._readings(self.sim.reset(restart_time))
 
     def set_command(self, controller: str, value: float) -> None:
-        self._commands[controller].publish(value)
+        if controller not in self._controllers:
+            raise KeyError(f"the robot has no controller {controller!r} (its controllers: "
+                           f"{', '.join(sorted(self._controllers))})")
+        self._pending[controller] = value
+
+    def take_commands(self) -> dict[str, float]:
+        """The commands set since the last step, which the next step would send; forgets them (for a client
+        that publishes them on the command topics itself, as the tutorials' Gazebo-style step does)."""
+        pending, self._pending = self._pending, {}
+        return pending
 
     def step(self, physics_steps: int) -> Readings:
-        marks = self._marks()
-        stamp = self.sim.step(physics_steps, self._commands.values())
-        return self._wait(marks, stamp)
+        pending = self._pending
+        self._pending = {}
+        return self._readings(self.sim.step_with(physics_steps, list(pending), list(pending.values())).readings)
 
     def render(self, width: int, height: int) -> np.ndarray:
         return self.sim.render(width, height)
 
     def close(self) -> None:
-        for publisher in self._commands.values():
-            publisher.unregister()
-        for subscriber in self._subscribers:
-            subscriber.unregister()
         if self._was_running:
             self.sim.unpause()
         self.sim.close()

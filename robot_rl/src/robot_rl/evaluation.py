@@ -3,8 +3,11 @@
   evaluate.py --qtable RUN [--episodes N] [--horizon-s S] [--backend direct|ros] [--seed S]
               [--video PATH.mp4 [--video-episodes N] [--video-size WxH]]
 
-RUN is a run folder (training_results/<task>/<run>, or its `latest` link) or its qtable.json; the
-checkpoint names the task, the run's params.yaml gives its parameters. Each episode lasts until the
+RUN (also --run) is a run folder (training_results/<task>/<run>, or its `latest` link) or its checkpoint:
+qtable.json of tabular Q-learning, or agent.json of a deep agent (its greedy policy is the SB3 model's
+deterministic action, the model rebuilt from agent.json and its weights loaded from model.zip; needs
+requirements-deep.txt: ./ws setup deep). The checkpoint names the task, the run's params.yaml gives
+its parameters. Each episode lasts until the
 task terminates it or `--horizon-s` seconds of sim time have passed (default: the task's). The last
 output line is one JSON object: {"task", "episodes", "horizon_s", "seed", "greedy": {...}, "random":
 {...}}, each policy with mean_return and the task's metrics (`mean_<metric>`, `<metric>_rate`).
@@ -31,7 +34,7 @@ from pybullet_sim.client import SimConnectionError
 
 from .params import ParamError
 from .qlearn import QLearn
-from .results import RunDirectory, aggregate
+from .results import DEEP_CHECKPOINT, QTABLE_CHECKPOINT, RunDirectory, aggregate
 from .task import Episode, StateKey, TaskSpec, find_task, make_env
 from .video import VideoRecorder
 
@@ -39,15 +42,20 @@ MAX_VIDEO_SIDE = 4096
 
 
 class TrainedRun:
-    """A run's task, params, Q-table and state key, checked against each other."""
+    """A run's task, params and policy (a Q-table with its state key, or a deep agent's model), checked
+    against each other."""
 
     def __init__(self, path: Path, tasks: Sequence[TaskSpec[Any]]):
-        qtable = path / "qtable.json" if path.is_dir() else path
-        checkpoint = RunDirectory(qtable.parent).load_checkpoint()
+        if path.is_dir():
+            deep = (path / DEEP_CHECKPOINT).is_file() and not (path / QTABLE_CHECKPOINT).is_file()
+            path = path / (DEEP_CHECKPOINT if deep else QTABLE_CHECKPOINT)
+        self.path, self.deep = path, path.name == DEEP_CHECKPOINT
+        checkpoint = RunDirectory(path.parent, path.name).load_checkpoint()
+        qtable = path
         try:
             self.task = find_task(list(tasks), checkpoint["task"])
-            self.qlearn = QLearn.from_dict(checkpoint["qlearn"])
-            saved_key = checkpoint["state_key"]
+            self.qlearn = None if self.deep else QLearn.from_dict(checkpoint["qlearn"])
+            saved_key = None if self.deep else checkpoint["state_key"]
         except (KeyError, TypeError) as error:
             raise ValueError(f"{qtable}: not a training checkpoint (missing {error})") from None
         params_file = qtable.with_name("params.yaml")
@@ -57,9 +65,18 @@ class TrainedRun:
             raise ValueError(f"{params_file}: {error}") from None
         self.params = self.task.params_type.from_mapping(document or {}, str(params_file))
         self.state_key: StateKey = self.task.state_key(self.params)
-        if self.state_key.to_dict() != saved_key:
+        if not self.deep and self.state_key.to_dict() != saved_key:
             raise ValueError(f"{qtable}: the Q-table was trained with another state key than this code makes from "
                              f"{params_file}")
+
+    def policy(self, env: Any, seed: int) -> Callable[[np.ndarray], int]:
+        """The greedy policy (tie breaks of the Q-table seeded with `seed`); `env` shapes a deep agent's model."""
+        if self.qlearn is None:
+            from .deep import load_policy
+            return load_policy(self.path.parent, self.task, self.params, env)
+        qlearn, state_key = self.qlearn, self.state_key
+        qlearn.rng.seed(seed)
+        return lambda observation: qlearn.greedy_action(state_key.key(observation))
 
 
 @dataclass(frozen=True)
@@ -70,10 +87,6 @@ class VideoRequest:
     episodes: int = 3
     width: int = 320
     height: int = 240
-
-
-def greedy_policy(run: TrainedRun) -> Callable[[np.ndarray], int]:
-    return lambda observation: run.qlearn.greedy_action(run.state_key.key(observation))
 
 
 def run_episodes(env: Any, policy: Callable[[np.ndarray], int], episodes: int, task: TaskSpec[Any],
@@ -106,12 +119,12 @@ def evaluate(run: TrainedRun, episodes: int, horizon_s: float, backend: str, see
                                           "render_height": video.height}
     env = make_env(run.task, params=run.params, backend=backend, seed=seed, max_episode_steps=steps, **rendering)
     recorder = None if video is None else VideoRecorder(env, video.path, video.episodes)
-    run.qlearn.rng.seed(seed)
     rng = np.random.default_rng(seed)
     n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
     try:
+        policy = run.policy(env, seed)
         env.reset(seed=seed)
-        greedy = run_episodes(recorder or env, greedy_policy(run), episodes, run.task, run.params.running_step)
+        greedy = run_episodes(recorder or env, policy, episodes, run.task, run.params.running_step)
         random_policy = run_episodes(env, lambda obs: int(rng.integers(n_actions)), episodes, run.task,
                                      run.params.running_step)
     finally:
@@ -135,7 +148,8 @@ def video_size(text: str) -> tuple[int, int]:
 
 def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     parser = argparse.ArgumentParser(prog="evaluate.py", description=__doc__.splitlines()[0])
-    parser.add_argument("--qtable", required=True, type=Path, help="a run folder or its qtable.json")
+    parser.add_argument("--qtable", "--run", dest="run", required=True, type=Path,
+                        help="a run folder, or its qtable.json or agent.json")
     parser.add_argument("--episodes", type=int, default=20, help="episodes per policy (default 20)")
     parser.add_argument("--horizon-s", type=float, help="sim seconds per episode at most (default: the task's)")
     parser.add_argument("--backend", choices=("direct", "ros"), default="direct",
@@ -159,9 +173,9 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str) ->
             parser.error(f"--video-episodes must be from 1 to --episodes ({args.episodes}), got {args.video_episodes}")
         video = VideoRequest(args.video, args.video_episodes, *args.video_size)
     try:
-        run = TrainedRun(args.qtable, tasks)
+        run = TrainedRun(args.run, tasks)
     except (OSError, ParamError, ValueError) as error:
-        parser.exit(2, f"evaluate.py: cannot read the trained Q-table {args.qtable}: {error}\n")
+        parser.exit(2, f"evaluate.py: cannot read the trained run {args.run}: {error}\n")
     if args.backend == "ros":
         from .backends import init_ros_node
         try:
@@ -173,5 +187,8 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str) ->
         report = evaluate(run, args.episodes, horizon_s, args.backend, args.seed, video)
     except SimConnectionError as error:
         parser.exit(1, f"evaluate.py: {error}\n")
+    except ModuleNotFoundError as error:  # a deep run without requirements-deep.txt
+        parser.exit(1, f"evaluate.py: {args.run} is a deep agent's run and {error.name} is not installed: "
+                       f"./ws setup deep installs requirements-deep.txt\n")
     print(json.dumps(report))
     return 0

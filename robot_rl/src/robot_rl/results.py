@@ -1,8 +1,9 @@
 """Training results on disk: <root>/<results name>/<run>/ plus a <root>/<results name>/latest symlink.
 
-A run directory holds params.yaml, episodes.csv, qtable.json (checkpoint), learning_curve.png,
-summary.json and, once trained, video.mp4 (the greedy policy). Everything except the append-only
-episodes.csv is written atomically; no pickle.
+A run directory holds params.yaml, episodes.csv, a checkpoint (qtable.json for tabular Q-learning;
+agent.json beside Stable-Baselines3's model.zip for a deep agent), learning_curve.png, summary.json
+and, once trained, video.mp4 (the greedy policy). Everything except the append-only episodes.csv is
+written atomically; no pickle.
 episodes.csv has the columns of every task (COLUMNS) followed by the task's own metrics.
 """
 from __future__ import annotations
@@ -24,6 +25,8 @@ from robot_rl.atomic import StrPath, symlink_atomic, write_bytes_atomic, write_j
 
 COLUMNS = ("episode", "steps", "return", "epsilon", "sim_time", "wall_time")
 LATEST = "latest"
+QTABLE_CHECKPOINT = "qtable.json"
+DEEP_CHECKPOINT = "agent.json"
 MOVING_AVERAGE = 50
 T = TypeVar("T")
 
@@ -72,12 +75,14 @@ def moving_average(values: Sequence[float], window: int = MOVING_AVERAGE) -> np.
 
 
 class RunDirectory:
-    """One training run's directory; `robot` (its results name) and `name` are taken from its path."""
+    """One training run's directory; `robot` (its results name) and `name` are taken from its path.
+    `checkpoint_name` is the checkpoint's file: qtable.json, or agent.json for a deep agent."""
 
-    def __init__(self, path: StrPath) -> None:
+    def __init__(self, path: StrPath, checkpoint_name: str = QTABLE_CHECKPOINT) -> None:
         self.path = Path(path)
         self.robot = self.path.parent.name
         self.name = self.path.name
+        self.checkpoint_name = checkpoint_name
 
     @property
     def episodes_csv(self) -> Path:
@@ -89,7 +94,16 @@ class RunDirectory:
 
     @property
     def qtable_json(self) -> Path:
-        return self.path / "qtable.json"
+        return self.path / QTABLE_CHECKPOINT
+
+    @property
+    def checkpoint_json(self) -> Path:
+        return self.path / self.checkpoint_name
+
+    @property
+    def model_zip(self) -> Path:
+        """A deep agent's model, in Stable-Baselines3's format."""
+        return self.path / "model.zip"
 
     @property
     def learning_curve_png(self) -> Path:
@@ -105,7 +119,7 @@ class RunDirectory:
 
     @classmethod
     def create(cls, root: StrPath, robot: str, params: dict[str, Any], metric_names: Sequence[str] = (),
-               run_name: str | None = None) -> RunDirectory:
+               run_name: str | None = None, checkpoint_name: str = QTABLE_CHECKPOINT) -> RunDirectory:
         """Make a new run directory and point `latest` at it.
 
         Default name: UTC "%Y%m%d-%H%M%S", with "-1", "-2", ... appended if taken. An explicit
@@ -128,20 +142,20 @@ class RunDirectory:
                 except FileExistsError:
                     n += 1
                     name = f"{base}-{n}"
-        run = cls(robot_dir / name)
+        run = cls(robot_dir / name, checkpoint_name)
         write_text_atomic(run.params_yaml, yaml.safe_dump(params, sort_keys=True, default_flow_style=False))
         write_text_atomic(run.episodes_csv, ",".join((*COLUMNS, *metric_names)) + "\n")
         symlink_atomic(name, robot_dir / LATEST)
         return run
 
     @classmethod
-    def latest(cls, root: StrPath, robot: str) -> RunDirectory:
+    def latest(cls, root: StrPath, robot: str, checkpoint_name: str = QTABLE_CHECKPOINT) -> RunDirectory:
         """The run <root>/<robot>/latest points to."""
         robot_dir = Path(root) / robot
         link = robot_dir / LATEST
         if not link.is_symlink() or not link.is_dir():
             raise FileNotFoundError(f"no previous run under {robot_dir}: start without resume")
-        return cls(robot_dir / Path(os.readlink(link)).name)
+        return cls(robot_dir / Path(os.readlink(link)).name, checkpoint_name)
 
     @property
     def metric_names(self) -> tuple[str, ...]:
@@ -187,26 +201,26 @@ class RunDirectory:
         return records
 
     def checkpoint(self, state: dict[str, Any]) -> None:
-        """Atomically write qtable.json: `state` (must hold "episode") plus "written_at"."""
+        """Atomically write the checkpoint (qtable.json): `state` (must hold "episode") plus "written_at"."""
         if not isinstance(state.get("episode"), int) or state["episode"] < 0:
             raise ValueError(f"checkpoint state needs an int 'episode' >= 0, got {state.get('episode')!r}")
-        write_json_atomic(self.qtable_json,
-                          {**state, "written_at": datetime.now(UTC).isoformat()})
+        write_json_atomic(self.checkpoint_json, {**state, "written_at": datetime.now(UTC).isoformat()})
 
     def load_checkpoint(self) -> dict[str, Any]:
-        """qtable.json as a dict; FileNotFoundError or ValueError naming the file if it cannot be."""
+        """The checkpoint as a dict; FileNotFoundError or ValueError naming the file if it cannot be."""
+        path = self.checkpoint_json
         try:
-            text = self.qtable_json.read_text(encoding="utf-8")
+            text = path.read_text(encoding="utf-8")
         except FileNotFoundError:
-            raise FileNotFoundError(f"no checkpoint {self.qtable_json}: nothing to resume from") from None
+            raise FileNotFoundError(f"no checkpoint {path}: nothing to resume from") from None
         except UnicodeDecodeError:
-            raise ValueError(f"{self.qtable_json}: not a checkpoint (not UTF-8 text)") from None
+            raise ValueError(f"{path}: not a checkpoint (not UTF-8 text)") from None
         try:
             state = json.loads(text)
         except json.JSONDecodeError as e:
-            raise ValueError(f"{self.qtable_json}: invalid JSON: {e}") from None
+            raise ValueError(f"{path}: invalid JSON: {e}") from None
         if not isinstance(state, dict):
-            raise ValueError(f"{self.qtable_json}: not a checkpoint (a JSON {type(state).__name__}, not an object)")
+            raise ValueError(f"{path}: not a checkpoint (a JSON {type(state).__name__}, not an object)")
         return state
 
     def prepare_resume(self, restore: Callable[[dict[str, Any]], T]) -> T:
@@ -218,12 +232,12 @@ class RunDirectory:
             restored = restore(state)
         except (KeyError, TypeError, ValueError) as error:
             reason = f"missing {error}" if isinstance(error, KeyError) else str(error)
-            raise ValueError(f"{self.qtable_json}: not a usable checkpoint: {reason}") from None
+            raise ValueError(f"{self.checkpoint_json}: not a usable checkpoint: {reason}") from None
         episode = state["episode"]
         records = self.read_episodes()
         if len([r for r in records if r.episode <= episode]) < episode:
             raise ValueError(f"{self.episodes_csv} has {len(records)} episodes, fewer than the {episode} of the "
-                             f"checkpoint {self.qtable_json}")
+                             f"checkpoint {self.checkpoint_json}")
         header = ",".join(self._header()) + "\n"
         buf = io.StringIO()
         csv.writer(buf, lineterminator="\n").writerows(r.row() for r in records if r.episode <= episode)

@@ -79,7 +79,8 @@ class QLearningTrainer:
         self.on_step, self.on_episode, self.should_stop = on_step, on_episode, should_stop
         self.checkpoint_every, self.progress_every_s = checkpoint_every, progress_every_s
         self.state_key = task.state_key(params)
-        self.n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
+        # A vector env's single_action_space: the action space of one of its envs.
+        self.n_actions = int(getattr(env, "single_action_space", env.action_space).n)  # type: ignore[union-attr]
         self.running_step = params.running_step
         if resume:
             self.qlearn, self.state, self.initial_epsilon = run.prepare_resume(self._restore)

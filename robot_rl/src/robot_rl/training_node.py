@@ -7,8 +7,13 @@ rewards. Private params: ~task, ~config_file (named in errors), ~results_dir (de
 $ROS_HOME/training_results), ~resume, ~nepisodes and ~seed (optional overrides of the YAML's),
 ~timeout (s, every wait on the sim), ~quiet (the per-episode "EP:" lines go to the debug log
 level), ~video (default true: once trained, video.mp4 next to learning_curve.png shows one greedy
-episode of the final Q-table, at most TRAINING_VIDEO_S of sim time, rendered on the direct backend so
-that the ROS sim is not needed).
+episode of the final policy, at most TRAINING_VIDEO_S of sim time, rendered on the direct backend so
+that the ROS sim is not needed),
+~agent (qlearn, the tutorials' tabular Q-learning; dqn or ppo, Stable-Baselines3's, see robot_rl.deep;
+their runs go to <results name>-<agent>/), ~agent_config (the deep agent's YAML, default
+robot_rl/config/<agent>.yaml), ~max_steps (a deep agent's env step budget; 0: nepisodes decides),
+~envs (1: the env over this master's sim; N > 1: N workers, each with a master and a sim of its own,
+see robot_rl.vector; the launch's own sim then idles).
 
 SIGINT or SIGTERM (Ctrl-C, roslaunch shutting down) stops the run cleanly: the episode under way is
 abandoned, a checkpoint and summary.json (marked incomplete) are written, and the node exits 130.
@@ -31,9 +36,10 @@ from pybullet_sim.client import SimConnectionError
 
 from .evaluation import TrainedRun, VideoRequest, evaluate
 from .params import ParamError, TaskParams, load_yaml_file
-from .results import RunDirectory
+from .results import DEEP_CHECKPOINT, QTABLE_CHECKPOINT, RunDirectory
 from .task import TaskSpec, find_task, make_env
 from .training import QLearningTrainer
+from .vector import WorkerError
 
 INTERRUPTED = 130  # the shell's code for a command ended by SIGINT
 TRAINING_VIDEO_S = 10.0  # sim seconds at most in a training run's video
@@ -95,12 +101,46 @@ def _write_video(tasks: Sequence[TaskSpec[Any]], task: TaskSpec[Any], run: RunDi
                   report["horizon_s"], time.monotonic() - start, metrics)
 
 
+def _read_agent() -> tuple[str, Any, int, int | None]:
+    """(agent, its params or None for qlearn, envs, max_steps or None) from the private params."""
+    agent, envs, max_steps = rospy.get_param("~agent", "qlearn"), rospy.get_param("~envs", 1), \
+        rospy.get_param("~max_steps", 0)
+    if not (isinstance(envs, int) and not isinstance(envs, bool) and envs >= 1):
+        raise ParamError(f"{rospy.get_name()}: parameter '~envs' must be a whole number >= 1, got {envs!r}")
+    if not (isinstance(max_steps, int) and not isinstance(max_steps, bool) and max_steps >= 0):
+        raise ParamError(f"{rospy.get_name()}: parameter '~max_steps' must be a whole number >= 0, got {max_steps!r}")
+    if agent == "qlearn":
+        return agent, None, envs, None
+    if agent not in ("dqn", "ppo"):
+        raise ParamError(f"{rospy.get_name()}: parameter '~agent' = {agent!r} is not one of qlearn, dqn, ppo")
+    try:
+        from .deep import load_agent_params
+    except ModuleNotFoundError as error:
+        raise ParamError(f"agent {agent} needs {error.name}, which is not installed: ./ws run ... agent:={agent} "
+                         f"installs requirements-deep.txt (or ./ws setup deep)") from None
+    config = rospy.get_param("~agent_config", "")
+    return agent, load_agent_params(agent, Path(config) if config else None), envs, max_steps or None
+
+
+def _make_env(task: TaskSpec[Any], params: TaskParams, agent: str, envs: int, timeout: float) -> Any:
+    """The env(s) to train on: over this master's sim, or N workers with sims of their own."""
+    if envs == 1:
+        return make_env(task, params=params, backend="ros", ros_timeout=timeout)
+    rospy.loginfo("Starting %d envs, each with a ROS master and a sim node of its own", envs)
+    if agent == "qlearn":
+        from .vector import make_vector_env
+        return make_vector_env(task, envs, backend="ros", seed=params.seed, params=params, ros_timeout=timeout)
+    from .deep import make_vec_env
+    return make_vec_env(task, envs, "ros", params.seed, params, ros_timeout=timeout)
+
+
 def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     rospy.init_node(node_name, anonymous=True, log_level=rospy.INFO, disable_signals=True)
     signals = _stop_on_signals()
     try:
         task = find_task(list(tasks), rospy.get_param("~task", tasks[0].name))
         params = _read_params(task)
+        agent, agent_params, envs, max_steps = _read_agent()
     except ParamError as error:
         return _fail(str(error))
     results_root = Path(rospy.get_param("~results_dir", str(Path(rospkg.get_ros_home()) / "training_results")))
@@ -109,15 +149,18 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     log_episode = rospy.logdebug if rospy.get_param("~quiet", False) else rospy.loginfo
     video = rospy.get_param("~video", True)  # read now: nothing needs the master once training runs
     try:
-        env = make_env(task, params=params, backend="ros", ros_timeout=timeout)
-    except SimConnectionError as error:
+        env = _make_env(task, params, agent, envs, timeout)
+    except (SimConnectionError, WorkerError) as error:
         if signals or rospy.is_shutdown():  # e.g. the sim failed to start and roslaunch is ending the launch
             rospy.logwarn("stopped before training started: %s", error)
             return INTERRUPTED
         return _fail(str(error))
+    results_name = task.results_name if agent == "qlearn" else f"{task.results_name}-{agent}"
+    checkpoint_name = QTABLE_CHECKPOINT if agent == "qlearn" else DEEP_CHECKPOINT
     try:
-        run = RunDirectory.latest(results_root, task.results_name) if resume else \
-            RunDirectory.create(results_root.resolve(), task.results_name, params.to_mapping(), task.metric_names)
+        run = RunDirectory.latest(results_root, results_name, checkpoint_name) if resume else \
+            RunDirectory.create(results_root.resolve(), results_name, params.to_mapping(), task.metric_names,
+                                checkpoint_name=checkpoint_name)
         rospy.loginfo("Results go to %s", run.path)
         reward_pub = rospy.Publisher(task.reward_topic, Float64, queue_size=10)
         episode_reward_pub = rospy.Publisher(task.episode_reward_topic, Float64, queue_size=10)
@@ -125,13 +168,32 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
         def on_step(reward: float, cumulated: float) -> None:
             reward_pub.publish(Float64(cumulated if task.publish_cumulated_reward else reward))
 
-        trainer = QLearningTrainer(env, task, params, run, log=rospy.loginfo, log_episode=log_episode,
-                                   on_step=on_step,
-                                   on_episode=lambda cumulated: episode_reward_pub.publish(Float64(cumulated)),
-                                   should_stop=lambda: bool(signals) or rospy.is_shutdown(), resume=resume)
+        def on_episode(cumulated: float) -> None:
+            episode_reward_pub.publish(Float64(cumulated))
+
+        def should_stop() -> bool:
+            return bool(signals) or rospy.is_shutdown()
+        trainer: Any
+        if agent != "qlearn":
+            from .deep import DeepTrainer
+            trainer = DeepTrainer(env, task, params, agent, agent_params, run, log=rospy.loginfo,
+                                  log_episode=log_episode, on_step=on_step, on_episode=on_episode,
+                                  should_stop=should_stop, resume=resume, max_steps=max_steps)
+        else:
+            trainer_type = QLearningTrainer
+            if envs > 1:
+                from .vector_training import VectorQLearningTrainer
+                trainer_type = VectorQLearningTrainer
+            trainer = trainer_type(env, task, params, run, log=rospy.loginfo, log_episode=log_episode,
+                                   on_step=on_step, on_episode=on_episode, should_stop=should_stop, resume=resume)
         summary = trainer.train()
     except (FileNotFoundError, ValueError) as error:
         return _fail(str(error))
+    except WorkerError as error:
+        if signals or rospy.is_shutdown():
+            return _interrupted(trainer.state.episode, run)
+        return _fail(f"training stopped: {error}. Episodes up to episode {trainer.state.episode} are saved in "
+                     f"{run.path}; continue with resume:=true")
     except SimConnectionError as error:
         if signals or rospy.is_shutdown():
             return _interrupted(trainer.state.episode, run)

@@ -1,0 +1,440 @@
+"""Deep agents: Stable-Baselines3's DQN and PPO on any task, over ROS or direct, with one env or N.
+
+Needs requirements-deep.txt (torch, stable-baselines3), which ./ws installs the first time a deep agent
+is asked for. Agents run on the CPU with one torch thread (the envs' workers need the other core).
+
+- `RobotVecEnv`: a Stable-Baselines3 VecEnv over `robot_rl.vector.EnvWorkers` (one process per env; over
+  ROS each with its own master and sim node). SB3's conventions: done = terminated or truncated, the
+  last observation in info["terminal_observation"], info["TimeLimit.truncated"], the env reset at once.
+  `seed(s)` gives worker i the i-th seed numpy's SeedSequence(s) derives, as the gymnasium face does.
+- `DeepTrainer`: trains until `nepisodes` episodes have ended (or `max_steps` env steps: then DQN's
+  exploration falls over a share of those steps, SB3's way; without it over a share of the episodes,
+  like tabular Q-learning's epsilon, by `EpisodeSchedule`), and writes the
+  run as tabular Q-learning does (episodes.csv with the task's metrics, learning_curve.png,
+  summary.json) plus SB3's model.zip and our checkpoint agent.json (JSON: the agent's params and the
+  counters), both every `checkpoint_every` episodes and at the end.
+- Resume rebuilds the model from the run's params (params.yaml, agent.json) and loads only the weights
+  from model.zip (SB3's set_parameters: torch tensors read with weights_only; SB3's pickled `data` is
+  never unpickled), with the counters (episodes, env steps, SB3's num_timesteps, so DQN's exploration
+  schedule goes on where it was) from agent.json. Not saved: DQN's replay buffer (SB3 pickles it) and
+  the optimiser's RNG streams, so a resumed DQN first collects `learning_starts` new transitions with
+  its current policy before it trains again, and a resumed run is not bit-for-bit the uninterrupted
+  one; PPO's rollout under way at the checkpoint is collected anew.
+- `load_policy`: a trained run's greedy (deterministic) policy, for evaluate.py and the training video.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+import numpy as np
+import torch
+from stable_baselines3 import DQN, PPO
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
+
+from .params import ParamError, Params, TaskParams, load_yaml_file, param
+from .results import DEEP_CHECKPOINT, EpisodeRecord, RunDirectory, aggregate
+from .task import Episode, MetricValue, TaskSpec, package_path
+from .training import PROGRESS_WINDOW, SUMMARY_WINDOW, TrainingState, format_duration
+from .vector import EnvWorkers, worker_seeds
+
+CHECKPOINT_FORMAT = "robot_rl.deep_checkpoint/1"
+AGENTS = ("dqn", "ppo")
+
+
+@dataclass(frozen=True, kw_only=True)
+class NetworkParams(Params):
+    hidden_layers: int = param(low=1, high=8, doc="hidden layers of the MLP")
+    hidden_units: int = param(low=1, high=4096, doc="units per hidden layer")
+    learning_rate: float = param(low=0.0, low_open=True, high=1.0, doc="Adam's step size")
+
+
+@dataclass(frozen=True, kw_only=True)
+class DqnParams(NetworkParams):
+    """Stable-Baselines3 DQN's arguments (gamma is the task's); see robot_rl/config/dqn.yaml."""
+
+    buffer_size: int = param(low=1, doc="replay buffer capacity (transitions)")
+    learning_starts: int = param(low=0, doc="transitions collected before the first gradient step")
+    batch_size: int = param(low=1, doc="transitions per gradient step")
+    train_freq: int = param(low=1, doc="env steps (per env) between two trainings")
+    gradient_steps: int = param(low=1, doc="gradient steps per training")
+    target_update_interval: int = param(low=1, doc="env steps between two target network updates")
+    exploration_fraction: float = param(low=0.0, high=1.0, doc="share of the step budget over which epsilon falls")
+    exploration_initial_eps: float = param(low=0.0, high=1.0, doc="epsilon at the start")
+    exploration_final_eps: float = param(low=0.0, high=1.0, doc="epsilon at the end of the fall")
+
+
+@dataclass(frozen=True, kw_only=True)
+class PpoParams(NetworkParams):
+    """Stable-Baselines3 PPO's arguments (gamma is the task's); see robot_rl/config/ppo.yaml."""
+
+    n_steps: int = param(low=1, doc="env steps per env between two updates")
+    batch_size: int = param(low=1, doc="minibatch size")
+    n_epochs: int = param(low=1, doc="passes over each rollout")
+    gae_lambda: float = param(low=0.0, high=1.0, doc="GAE lambda")
+    clip_range: float = param(low=0.0, low_open=True, doc="PPO's clip range")
+    ent_coef: float = param(low=0.0, doc="entropy bonus weight")
+
+
+PARAMS_TYPES: dict[str, type[NetworkParams]] = {"dqn": DqnParams, "ppo": PpoParams}
+ALGORITHMS: dict[str, Any] = {"dqn": DQN, "ppo": PPO}  # DQN and PPO take gamma, BaseAlgorithm does not
+
+
+def agent_config_path(agent: str) -> Path:
+    """robot_rl/config/<agent>.yaml, the agent's default params."""
+    return package_path("robot_rl") / "config" / f"{agent}.yaml"
+
+
+def load_agent_params(agent: str, path: Path | None = None) -> NetworkParams:
+    """The agent's params from `path` (default: robot_rl/config/<agent>.yaml); ParamError names the key."""
+    if agent not in AGENTS:
+        raise ParamError(f"unknown agent {agent!r} (known: qlearn, {', '.join(AGENTS)})")
+    path = path or agent_config_path(agent)
+    return PARAMS_TYPES[agent].from_mapping(load_yaml_file(path), str(path))
+
+
+def build_model(agent: str, agent_params: NetworkParams, env: VecEnv | gymnasium.Env[Any, Any], gamma: float,
+                seed: int) -> BaseAlgorithm:
+    """The SB3 model of `agent` with these params, on the CPU."""
+    values = agent_params.to_mapping()
+    network = [values.pop("hidden_units")] * values.pop("hidden_layers")
+    policy_kwargs = {"net_arch": network} if agent == "dqn" else {"net_arch": {"pi": network, "vf": network}}
+    return ALGORITHMS[agent]("MlpPolicy", env, gamma=gamma, seed=seed, device="cpu", verbose=0,
+                             policy_kwargs=policy_kwargs, **values)
+
+
+class EpisodeSchedule:
+    """DQN's exploration rate by the share of the episodes done (`progress`, set by the trainer): from
+    `initial` down to `final` over the first `fraction` of them, then `final`. Used when the budget is
+    nepisodes, not a number of env steps (SB3's own schedule is by steps). Picklable, as SB3 saves it."""
+
+    def __init__(self, initial: float, final: float, fraction: float):
+        self.initial, self.final, self.fraction = initial, final, fraction
+        self.progress = 0.0
+
+    def __call__(self, _progress_remaining: float) -> float:
+        if self.fraction <= 0.0 or self.progress >= self.fraction:
+            return self.final
+        return self.initial + (self.final - self.initial) * self.progress / self.fraction
+
+
+class RobotVecEnv(VecEnv):
+    """A Stable-Baselines3 VecEnv over EnvWorkers (see the module docstring)."""
+
+    def __init__(self, workers: EnvWorkers):
+        self.workers = workers
+        super().__init__(workers.n, workers.observation_space, workers.action_space)
+        self._actions: list[int] = []
+
+    def seed(self, seed: int | None = None) -> Sequence[int | None]:
+        self._seeds = list(worker_seeds(seed, self.num_envs))
+        return self._seeds
+
+    def reset(self) -> np.ndarray:
+        replies = self.workers.request_all("reset", [(s, o or None) for s, o in zip(self._seeds, self._options)])
+        self.reset_infos = [info for _, info in replies]
+        self._reset_seeds()
+        self._reset_options()
+        return np.stack([observation for observation, _ in replies])
+
+    def step_async(self, actions: np.ndarray) -> None:
+        for i, action in enumerate(np.asarray(actions).reshape(self.num_envs)):
+            self.workers.send(i, "step", int(action))
+
+    def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
+        replies = self.workers.receive_all(what="answer a step")
+        observations, rewards, dones, infos = [], [], [], []
+        for i, (observation, reward, terminated, truncated, info, final) in enumerate(replies):
+            if final is not None:  # the worker has reset: `info` is the reset's, `final` the episode's last
+                self.reset_infos[i] = info
+                info = {**final[1], "terminal_observation": final[0]}
+            info["TimeLimit.truncated"] = truncated and not terminated
+            observations.append(observation)
+            rewards.append(reward)
+            dones.append(terminated or truncated)
+            infos.append(info)
+        return (np.stack(observations), np.array(rewards, dtype=np.float32), np.array(dones, dtype=np.bool_),
+                infos)
+
+    def close(self) -> None:
+        self.workers.close()
+
+    def _indices(self, indices: Any) -> list[int]:
+        if indices is None:
+            return list(range(self.num_envs))
+        return [indices] if isinstance(indices, int) else list(indices)
+
+    def get_attr(self, attr_name: str, indices: Any = None) -> list[Any]:
+        targets = self._indices(indices)
+        for i in targets:
+            self.workers.send(i, "get_attr", attr_name)
+        return [self.workers.receive(i, what=f"answer get_attr {attr_name!r}") for i in targets]
+
+    def set_attr(self, attr_name: str, value: Any, indices: Any = None) -> None:
+        targets = self._indices(indices)
+        for i in targets:
+            self.workers.send(i, "call", ("__setattr__", (attr_name, value), {}))
+        for i in targets:
+            self.workers.receive(i, what=f"answer set_attr {attr_name!r}")
+
+    def env_method(self, method_name: str, *method_args: Any, indices: Any = None, **method_kwargs: Any) -> list[Any]:
+        targets = self._indices(indices)
+        for i in targets:
+            self.workers.send(i, "call", (method_name, method_args, method_kwargs))
+        return [self.workers.receive(i, what=f"answer {method_name}()") for i in targets]
+
+    def env_is_wrapped(self, wrapper_class: type[gymnasium.Wrapper[Any, Any, Any, Any]],
+                       indices: Any = None) -> list[bool]:
+        """Only gymnasium's TimeLimit wraps a worker's env (and SB3 never asks about it)."""
+        return [wrapper_class is gymnasium.wrappers.TimeLimit for _ in self._indices(indices)]
+
+
+def make_vec_env(task: TaskSpec[Any], n: int, backend: str, seed: int, params: TaskParams,
+                 ros_timeout: float = 10.0) -> RobotVecEnv:
+    """N envs of `task` in worker processes, as an SB3 VecEnv."""
+    return RobotVecEnv(EnvWorkers(task, n, backend=backend, seed=seed, params=params, ros_timeout=ros_timeout))
+
+
+class _EpisodeLogger(BaseCallback):
+    """Follows each env's episodes in SB3's rollouts and hands every finished one to the trainer."""
+
+    def __init__(self, trainer: DeepTrainer):
+        super().__init__()
+        self.trainer = trainer
+
+    def _on_training_start(self) -> None:
+        n = self.training_env.num_envs
+        self.returns, self.steps = [0.0] * n, [0] * n
+
+    def _on_step(self) -> bool:
+        rewards, dones, infos = self.locals["rewards"], self.locals["dones"], self.locals["infos"]
+        on_step = self.trainer.on_step
+        for i in range(len(dones)):
+            self.returns[i] += float(rewards[i])
+            self.steps[i] += 1
+            if on_step is not None:
+                on_step(float(rewards[i]), self.returns[i])
+            if dones[i]:
+                info = infos[i]
+                self.trainer.episode_done(i, self.steps[i], self.returns[i],
+                                          not info.get("TimeLimit.truncated", False), info)
+                self.returns[i], self.steps[i] = 0.0, 0
+        return self.trainer.keep_going()
+
+
+class DeepTrainer:
+    """Trains `agent` (dqn or ppo) on `env` (an SB3 VecEnv, or one gymnasium env) and writes `run`."""
+
+    def __init__(self, env: VecEnv | gymnasium.Env[Any, Any], task: TaskSpec[Any], params: TaskParams, agent: str,
+                 agent_params: NetworkParams, run: RunDirectory, log: Callable[[str], None] = print,
+                 log_episode: Callable[[str], None] | None = None,
+                 on_step: Callable[[float, float], None] | None = None,
+                 on_episode: Callable[[float], None] | None = None,
+                 should_stop: Callable[[], bool] = lambda: False, resume: bool = False, checkpoint_every: int = 10,
+                 progress_every_s: float = 10.0, max_steps: int | None = None):
+        torch.set_num_threads(1)
+        self.env: VecEnv = env if isinstance(env, VecEnv) else DummyVecEnv([lambda: env])
+        self.task, self.params, self.agent, self.run = task, params, agent, run
+        self.log, self.log_episode = log, log_episode or log
+        self.on_step, self.on_episode, self.should_stop = on_step, on_episode, should_stop
+        self.checkpoint_every, self.progress_every_s = checkpoint_every, progress_every_s
+        self.max_steps = max_steps if max_steps is not None else params.nepisodes * params.nsteps  # at most
+        self.n_envs = self.env.num_envs
+        run.checkpoint_name = DEEP_CHECKPOINT
+        self.model = build_model(agent, agent_params, self.env, params.gamma, params.seed)
+        self.agent_params = agent_params
+        self.schedule: EpisodeSchedule | None = None
+        if isinstance(self.model, DQN) and max_steps is None:
+            assert isinstance(agent_params, DqnParams)
+            self.schedule = EpisodeSchedule(agent_params.exploration_initial_eps, agent_params.exploration_final_eps,
+                                            agent_params.exploration_fraction)
+            self.model.exploration_schedule = self.schedule
+        self.stopped: str | None = None
+        self._wall_start = self._next_progress = time.monotonic()
+        self._timesteps_offset = self._steps_at_start = 0
+        if resume:
+            self.state, num_timesteps = run.prepare_resume(self._restore)
+            self.model.set_parameters(str(run.model_zip), exact_match=True, device="cpu")
+            self.model.num_timesteps = num_timesteps
+            if isinstance(self.model, DQN):  # its replay buffer was not saved: fill it anew before training
+                self.model.learning_starts = num_timesteps + self.model.learning_starts
+            log(f"Resuming {run.path} after episode {self.state.episode} ({self.state.env_steps} env steps)")
+        else:
+            self.state = TrainingState()
+        if self.schedule is not None:
+            self.schedule.progress = self.state.episode / params.nepisodes
+        self.headline: list[MetricValue] = [r.metrics.get(task.headline_metric, math.nan)
+                                            for r in run.read_episodes()[-PROGRESS_WINDOW:]]
+        self.episodes_per_env = [0] * self.n_envs
+
+    def _restore(self, checkpoint: dict[str, Any]) -> tuple[TrainingState, int]:
+        """The counters of a checkpoint, checked against this run (ValueError/KeyError/TypeError if not)."""
+        if checkpoint.get("format") != CHECKPOINT_FORMAT:
+            raise ValueError(f"format is {checkpoint.get('format')!r}, expected {CHECKPOINT_FORMAT!r}")
+        if checkpoint["task"] != self.task.env_id:
+            raise ValueError(f"it is of task {checkpoint['task']!r}, this run trains {self.task.env_id!r}")
+        if checkpoint["agent"] != self.agent:
+            raise ValueError(f"it is of agent {checkpoint['agent']!r}, this run trains {self.agent!r}")
+        if checkpoint["agent_params"] != self.agent_params.to_mapping():
+            raise ValueError("its agent params differ from this run's (they shape the network the weights fit)")
+        state = TrainingState.from_dict(checkpoint["state"])
+        num_timesteps = checkpoint["num_timesteps"]
+        if not (isinstance(num_timesteps, int) and num_timesteps >= 0):
+            raise ValueError(f"num_timesteps {num_timesteps!r} is not a count")
+        if not self.run.model_zip.is_file():
+            raise ValueError(f"{self.run.model_zip} is missing")
+        return state, num_timesteps
+
+    def checkpoint(self) -> None:
+        """model.zip (SB3's format), then agent.json (ours), each written whole."""
+        partial = self.run.path / "model.partial.zip"
+        self.model.save(str(partial))
+        partial.replace(self.run.model_zip)
+        self.run.checkpoint({"format": CHECKPOINT_FORMAT, "task": self.task.env_id, "agent": self.agent,
+                             "agent_params": self.agent_params.to_mapping(), "envs": self.n_envs,
+                             "episode": self.state.episode, "num_timesteps": int(self.model.num_timesteps),
+                             "state": dataclasses.asdict(self.state)})
+        self.run.write_learning_curve(self.task.headline_metric)
+
+    def _exploration(self) -> float:
+        """The epsilon column: DQN's exploration rate (PPO explores by sampling its policy: NaN)."""
+        return float(self.model.exploration_rate) if isinstance(self.model, DQN) else math.nan
+
+    def episode_done(self, env_index: int, steps: int, return_: float, terminated: bool, info: dict[str, Any]) -> None:
+        """Log one finished episode of env `env_index` (as tabular training does), checkpoint when due."""
+        state = self.state
+        if state.episode >= self.params.nepisodes:
+            return  # an episode of another env that ended after the last one counted
+        duration = steps * self.params.running_step
+        episode = Episode(steps=steps, return_=return_, terminated=terminated, duration=duration, info=info)
+        metrics = self.task.metrics(episode)
+        self.headline = [*self.headline[-PROGRESS_WINDOW + 1:], metrics[self.task.headline_metric]]
+        self.episodes_per_env[env_index] += 1
+        state.highest_reward = max(state.highest_reward, return_)
+        if terminated:
+            state.last_time_steps.append(steps)
+        state.episode += 1
+        if self.schedule is not None:
+            self.schedule.progress = state.episode / self.params.nepisodes
+        state.sim_time += episode.duration
+        state.wall_time = time.monotonic() - self._wall_start
+        self.run.append_episode(EpisodeRecord(episode=state.episode, steps=steps, return_=return_,
+                                              epsilon=self._exploration(), sim_time=state.sim_time,
+                                              wall_time=state.wall_time, metrics=metrics))
+        if self.on_episode is not None:
+            self.on_episode(return_)
+        per_env = f" - env {env_index + 1}/{self.n_envs} (episodes per env: " \
+                  f"{', '.join(map(str, self.episodes_per_env))})" if self.n_envs > 1 else ""
+        exploration = f": exploration {self._exploration():.2f}" if isinstance(self.model, DQN) else ""
+        self.log_episode(f"EP: {state.episode} - [{self.agent}{exploration}] - Reward: {return_:.1f}     Time: "
+                         f"{format_duration(state.wall_time)}{per_env}")
+        if state.episode % self.checkpoint_every == 0:
+            self._count_steps()
+            self.checkpoint()
+
+    def _count_steps(self) -> None:
+        self.state.env_steps = int(self.model.num_timesteps) - self._timesteps_offset + self._steps_at_start
+
+    def keep_going(self) -> bool:
+        """Whether SB3 should take another step (and a progress line every progress_every_s)."""
+        now = time.monotonic()
+        if now >= self._next_progress:
+            self._next_progress = now + self.progress_every_s
+            self._count_steps()
+            state = self.state
+            rate = state.env_steps / max(now - self._wall_start, 1e-9)
+            value = next(iter(aggregate({self.task.headline_metric: self.headline}).items()))
+            exploration = f", exploration {self._exploration():.3f}" if isinstance(self.model, DQN) else ""
+            self.log(f"progress: episode {state.episode}/{self.params.nepisodes}, {state.env_steps} env steps, "
+                     f"{rate:.0f} env steps/s, {value[0]} over the last {len(self.headline)} episodes: "
+                     f"{value[1]:.3g}{exploration}")
+        if self.should_stop():
+            self.stopped = "interrupted"
+            return False
+        return self.state.episode < self.params.nepisodes
+
+    def train(self) -> dict[str, Any]:
+        """Train until nepisodes episodes (or max_steps env steps); returns the summary written to summary.json."""
+        state = self.state
+        self._wall_start = time.monotonic() - state.wall_time
+        self._next_progress = time.monotonic() + self.progress_every_s
+        self._timesteps_offset, self._steps_at_start = int(self.model.num_timesteps), state.env_steps
+        remaining = self.max_steps - state.env_steps
+        if state.episode < self.params.nepisodes and remaining > 0 and not self.should_stop():
+            try:
+                self.model.learn(total_timesteps=remaining, callback=_EpisodeLogger(self), reset_num_timesteps=False)
+            except BaseException as error:
+                self.stopped = "interrupted" if isinstance(error, KeyboardInterrupt) or self.should_stop() \
+                    else f"error: {error}"
+                self._save_quietly()
+                raise
+        self._count_steps()
+        state.wall_time = time.monotonic() - self._wall_start
+        self.checkpoint()
+        done = state.episode >= self.params.nepisodes or state.env_steps >= self.max_steps
+        return self.finish(stopped=None if done and self.stopped is None else self.stopped or "interrupted")
+
+    def _save_quietly(self) -> None:
+        try:
+            self._count_steps()
+            self.checkpoint()
+            self.finish(self.stopped)
+        except (OSError, ValueError) as error:  # the original error matters more; say why nothing was saved
+            self.log(f"could not save the run after episode {self.state.episode}: {error}")
+
+    def finish(self, stopped: str | None = None) -> dict[str, Any]:
+        state = self.state
+        last = self.run.read_episodes()[-SUMMARY_WINDOW:]
+        metrics = aggregate({name: [r.metrics[name] for r in last] for name in self.run.metric_names})
+        summary = {"task": self.task.env_id, "robot": self.run.robot, "run": self.run.name, "agent": self.agent,
+                   "envs": self.n_envs, "episodes": state.episode, "nepisodes": self.params.nepisodes,
+                   "max_steps": self.max_steps, "highest_reward": state.highest_reward,
+                   "mean_return_last_100": aggregate({"return": [r.return_ for r in last]})["mean_return"],
+                   "metrics_last_100": metrics, "headline_metric": self.task.headline_metric,
+                   "env_steps": state.env_steps, "sim_time_s": state.sim_time, "wall_time_s": state.wall_time,
+                   "env_steps_per_s": state.env_steps / state.wall_time if state.wall_time > 0 else None,
+                   "completed": stopped is None, "stopped": stopped}
+        self.run.write_summary(summary)
+        headline = aggregate({self.task.headline_metric: [r.metrics[self.task.headline_metric] for r in last]})
+        self.log(f"{self.agent}: {state.episode} episodes, {state.env_steps} env steps in "
+                 f"{format_duration(state.wall_time)}; over the last {len(last)} episodes: "
+                 f"{', '.join(f'{k} {v:.3g}' for k, v in headline.items() if v is not None)}")
+        return summary
+
+
+class DeepPolicy:
+    """A trained run's deterministic policy: observation -> action."""
+
+    def __init__(self, model: BaseAlgorithm):
+        self.model = model
+
+    def __call__(self, observation: np.ndarray) -> int:
+        action, _ = self.model.predict(observation, deterministic=True)
+        return int(action)
+
+
+def load_policy(run_dir: Path, task: TaskSpec[Any], params: TaskParams, env: gymnasium.Env[Any, Any]) -> DeepPolicy:
+    """The greedy policy of a deep run: the model rebuilt from agent.json's params, its weights from model.zip."""
+    run = RunDirectory(run_dir, DEEP_CHECKPOINT)
+    checkpoint = run.load_checkpoint()
+    try:
+        agent = checkpoint["agent"]
+        if checkpoint.get("format") != CHECKPOINT_FORMAT or agent not in AGENTS:
+            raise ValueError(f"format {checkpoint.get('format')!r}, agent {agent!r}")
+        if checkpoint["task"] != task.env_id:
+            raise ValueError(f"it is of task {checkpoint['task']!r}")
+        agent_params = PARAMS_TYPES[agent].from_mapping(checkpoint["agent_params"], str(run.checkpoint_json))
+    except (KeyError, TypeError, ValueError, ParamError) as error:
+        raise ValueError(f"{run.checkpoint_json}: not a deep agent's checkpoint ({error})") from None
+    torch.set_num_threads(1)
+    model = build_model(agent, agent_params, DummyVecEnv([lambda: env]), params.gamma, params.seed)
+    model.set_parameters(str(run.model_zip), exact_match=True, device="cpu")
+    return DeepPolicy(model)

@@ -1,0 +1,328 @@
+"""Many envs at once: one worker process per env, over ROS (each with a master and a sim of its own) or direct.
+
+`EnvWorkers` starts N worker processes (multiprocessing's "spawn": rospy's state must never cross a
+fork). Worker i makes the task's env with the i-th seed that numpy's SeedSequence derives from the one
+seed given, so a run repeats; over ROS it first starts a `PrivateSim` (rosmaster on a free loopback
+port + the robot's sim node, paused) and becomes a node on that master, so every worker sees the
+tutorials' global topic names; direct workers need no master. A worker resets its env the moment an
+episode ends (gymnasium's SAME_STEP autoreset: the step answers the first observation of the next
+episode, with the last one and the last info beside it).
+
+Every wait is bounded: a worker that does not start within `start_timeout`, or does not answer a
+step within `ros_timeout` plus a margin, ends the vector env with a WorkerError naming the worker and
+what to check. close() ends every worker and everything it started: it asks each to close (a worker
+stops its sim node and master by PID), then SIGTERM, then SIGKILL, each bounded. After an exception
+in a worker the error names it and the others go on until close(). Workers ignore SIGINT: Ctrl-C in
+a terminal reaches the whole process group (the masters and sim nodes end at once), and the parent
+ends the workers through close(). Each worker and each process it starts gets SIGTERM from the kernel
+when its parent dies (PR_SET_PDEATHSIG), and a worker ends when its pipe to the parent closes.
+
+Two faces: `RobotVectorEnv` is a gymnasium VectorEnv; `robot_rl.deep.RobotVecEnv` is a
+Stable-Baselines3 VecEnv over the same workers.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import multiprocessing.connection
+import os
+import shutil
+import signal
+import tempfile
+import traceback
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from .params import TaskParams
+from .private_sim import PrivateSim, set_pdeathsig
+from .task import TaskSpec, make_env
+
+START_TIMEOUT = 60.0   # s for a worker to start its master, its sim node and its env
+REPLY_MARGIN = 30.0    # s a worker may take beyond ros_timeout to answer (a reset with a long settle on a busy machine)
+CLOSE_TIMEOUT = 10.0   # s for a worker to close before SIGTERM, and again before SIGKILL
+
+
+class WorkerError(RuntimeError):
+    """A worker failed, died or did not answer in time; the message names it and what to check."""
+
+
+def worker_seeds(seed: int | None, n: int) -> list[int]:
+    """N independent seeds in [0, 2**31) (ROS params are 32-bit ints) derived from one by numpy's
+    SeedSequence.spawn: the same seed gives the same N seeds; None draws fresh entropy."""
+    return [int(child.generate_state(1, dtype=np.uint32)[0] >> 1) for child in np.random.SeedSequence(seed).spawn(n)]
+
+
+@dataclass(frozen=True)
+class WorkerRecipe:
+    """What a worker needs to make its env (pickled to the spawned process)."""
+
+    task: TaskSpec[Any]
+    params: TaskParams
+    backend: str                  # "ros" or "direct"
+    seed: int
+    ros_timeout: float
+    log_dir: Path
+    max_episode_steps: int | None
+    env_kwargs: dict[str, Any]
+
+
+def _worker_env(index: int, recipe: WorkerRecipe) -> tuple[gymnasium.Env[Any, Any], PrivateSim | None]:
+    """The worker's env, over its own private sim when over ROS."""
+    if recipe.backend == "direct":
+        return make_env(recipe.task, params=recipe.params, backend="direct", seed=recipe.seed,
+                        max_episode_steps=recipe.max_episode_steps, **recipe.env_kwargs), None
+    sim = PrivateSim(recipe.task.robot, recipe.log_dir / f"worker{index}", seed=recipe.seed)
+    try:
+        os.environ.update(ROS_MASTER_URI=sim.uri, ROS_HOSTNAME="127.0.0.1", ROS_IP="127.0.0.1",
+                          ROS_LOG_DIR=str(sim.log_dir), ROS_HOME=str(sim.log_dir))
+        import rospy
+        rospy.init_node(f"robot_rl_worker{index}", disable_signals=True)  # the parent decides when a worker ends
+        env = make_env(recipe.task, params=recipe.params, backend="ros", ros_timeout=recipe.ros_timeout,
+                       max_episode_steps=recipe.max_episode_steps, **recipe.env_kwargs)
+    except BaseException:
+        sim.close()
+        raise
+    return env, sim
+
+
+def _raise_system_exit(_signum: int, _frame: Any) -> None:
+    raise SystemExit(1)
+
+
+def _worker(index: int, recipe: WorkerRecipe, conn: multiprocessing.connection.Connection) -> None:
+    """A worker's life: make the env, then answer one reply per command until "close" or the pipe closes."""
+    set_pdeathsig(signal.SIGTERM)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _raise_system_exit)  # ends the worker through the finally below
+    env, sim = None, None
+    try:
+        env, sim = _worker_env(index, recipe)
+        info = {"pid": os.getpid(), "master_uri": sim.uri if sim else None,
+                "children": [p.pid for p in sim.processes] if sim else []}
+        conn.send(("ok", (env.observation_space, env.action_space, env.metadata, info)))
+        while True:
+            try:
+                command, data = conn.recv()
+            except EOFError:  # the parent is gone
+                break
+            if command == "step":
+                observation, reward, terminated, truncated, info = env.step(data)
+                final = None
+                if terminated or truncated:
+                    final = (observation, info)
+                    observation, info = env.reset()
+                conn.send(("ok", (observation, float(reward), bool(terminated), bool(truncated), info, final)))
+            elif command == "reset":
+                conn.send(("ok", env.reset(seed=data[0], options=data[1])))
+            elif command == "get_attr":
+                conn.send(("ok", getattr(env.unwrapped, data)))
+            elif command == "call":
+                name, args, kwargs = data
+                conn.send(("ok", getattr(env.unwrapped, name)(*args, **kwargs)))
+            elif command == "close":
+                conn.send(("ok", None))
+                break
+            else:
+                raise ValueError(f"unknown worker command {command!r}")
+    except (KeyboardInterrupt, SystemExit):
+        pass
+    except BaseException as error:  # the parent re-raises it, naming the worker
+        try:
+            conn.send(("error", f"{type(error).__name__}: {error}\n{traceback.format_exc()}"))
+        except OSError:
+            pass
+    finally:
+        try:
+            if env is not None:
+                env.close()
+        except Exception:  # the sim may already be gone; its processes end below
+            pass
+        if sim is not None:
+            import rospy
+            rospy.signal_shutdown("the vector env closes this worker")  # unregisters while the master is up
+            sim.close()
+        conn.close()
+
+
+class EnvWorkers:
+    """N worker processes, each with one env of `task` (see the module docstring)."""
+
+    def __init__(self, task: TaskSpec[Any], n: int, backend: str = "ros", seed: int | None = 0,
+                 params: TaskParams | None = None, ros_timeout: float = 10.0, start_timeout: float = START_TIMEOUT,
+                 max_episode_steps: int | None = None, log_dir: Path | None = None, **env_kwargs: Any):
+        if not (isinstance(n, int) and n >= 1):
+            raise ValueError(f"the number of envs must be a whole number >= 1, got {n!r}")
+        if backend not in ("ros", "direct"):
+            raise ValueError(f"backend must be 'ros' or 'direct', got {backend!r}")
+        self.task, self.n, self.backend = task, n, backend
+        self.params = params if params is not None else task.default_params()
+        self.seeds = worker_seeds(seed, n)
+        self.reply_timeout = ros_timeout + REPLY_MARGIN
+        self._own_log_dir = log_dir is None
+        self.log_dir = Path(tempfile.mkdtemp(prefix="robot_rl-workers-")) if log_dir is None else Path(log_dir)
+        self._pending = [False] * n  # whether worker i owes a reply
+        self._conns: list[multiprocessing.connection.Connection] = []
+        self._processes: list[multiprocessing.process.BaseProcess] = []
+        self.closed = False
+        context = multiprocessing.get_context("spawn")
+        try:
+            for i in range(n):
+                recipe = WorkerRecipe(task, self.params, backend, self.seeds[i], ros_timeout, self.log_dir,
+                                      max_episode_steps, env_kwargs)
+                parent, child = context.Pipe()
+                process = context.Process(target=_worker, args=(i, recipe, child), name=f"robot_rl-worker{i}",
+                                          daemon=True)
+                process.start()
+                child.close()
+                self._conns.append(parent)
+                self._processes.append(process)
+                self._pending[i] = True
+            ready = self.receive_all(start_timeout, "start")
+        except BaseException:
+            self.close()
+            raise
+        self.observation_space, self.action_space, self.metadata = ready[0][:3]
+        # Per worker: its pid, its master's URI (None when direct) and the pids of its master and sim node.
+        self.worker_info: list[dict[str, Any]] = [reply[3] for reply in ready]
+
+    def _what_to_check(self, i: int) -> str:
+        if self.backend == "ros":
+            return f"its master's and sim node's logs are in {self.log_dir / f'worker{i}'}"
+        return "the traceback above comes from its env"
+
+    def send(self, i: int, command: str, data: Any = None) -> None:
+        if self.closed:
+            raise WorkerError("the vector env is closed")
+        try:
+            self._conns[i].send((command, data))
+        except OSError as error:
+            raise WorkerError(f"worker {i} ({self.backend}) is gone ({error}); "
+                              f"{self._what_to_check(i)}") from None
+        self._pending[i] = True
+
+    def receive(self, i: int, timeout: float | None = None, what: str = "reply") -> Any:
+        """Worker i's reply (bounded); WorkerError if it failed, died or did not answer."""
+        conn, timeout = self._conns[i], self.reply_timeout if timeout is None else timeout
+        try:
+            if not conn.poll(timeout):
+                raise WorkerError(f"worker {i} ({self.backend}, pid {self._processes[i].pid}) did not {what} within "
+                                  f"{timeout:.0f} s (is the machine overloaded, or the sim frozen?); "
+                                  f"{self._what_to_check(i)}")
+            status, data = conn.recv()
+        except (EOFError, OSError):
+            self._processes[i].join(1.0)
+            raise WorkerError(f"worker {i} ({self.backend}) died (exit code {self._processes[i].exitcode}) before "
+                              f"its {what}; {self._what_to_check(i)}") from None
+        self._pending[i] = False
+        if status == "error":
+            raise WorkerError(f"worker {i} ({self.backend}) failed: {data}")
+        return data
+
+    def receive_all(self, timeout: float | None = None, what: str = "reply") -> list[Any]:
+        """Every worker's reply; the first failure is raised after every other reply has been read."""
+        replies, failure = [], None
+        for i in range(self.n):
+            try:
+                replies.append(self.receive(i, timeout, what))
+            except WorkerError as error:
+                failure = failure or error
+                replies.append(None)
+        if failure is not None:
+            raise failure
+        return replies
+
+    def request_all(self, command: str, data: Sequence[Any]) -> list[Any]:
+        for i, item in enumerate(data):
+            self.send(i, command, item)
+        return self.receive_all(what=f"answer {command!r}")
+
+    def close(self) -> None:
+        """End every worker and what it started (bounded; idempotent)."""
+        if self.closed:
+            return
+        self.closed = True
+        for i, conn in enumerate(self._conns):
+            try:
+                if self._pending[i] and conn.poll(CLOSE_TIMEOUT):
+                    conn.recv()  # the reply owed, e.g. after an interrupted step
+                conn.send(("close", None))
+            except (EOFError, OSError):
+                pass
+        for process in self._processes:
+            process.join(CLOSE_TIMEOUT)
+            for stop in (process.terminate, process.kill):
+                if process.exitcode is None:
+                    stop()
+                    process.join(CLOSE_TIMEOUT)
+        for conn in self._conns:
+            conn.close()
+        if self._own_log_dir:
+            shutil.rmtree(self.log_dir, ignore_errors=True)
+
+    def __del__(self) -> None:
+        if not getattr(self, "closed", True):
+            self.close()
+
+
+class RobotVectorEnv(VectorEnv):
+    """A gymnasium VectorEnv over EnvWorkers (autoreset SAME_STEP: infos["final_obs"], infos["final_info"]).
+
+    reset(seed=int) resets worker i with the i-th seed SeedSequence(seed) derives (worker_seeds); a list
+    gives each worker its own seed."""
+
+    def __init__(self, workers: EnvWorkers):
+        self.workers = workers
+        self.num_envs = workers.n
+        self.single_observation_space = workers.observation_space
+        self.single_action_space = workers.action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.metadata = {**workers.metadata, "autoreset_mode": AutoresetMode.SAME_STEP}
+        self.spec = None
+        self.render_mode = None
+        self._np_random = None
+        self._np_random_seed = None
+
+    def reset(self, *, seed: int | list[int | None] | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        if seed is None:
+            seeds: list[int | None] = [None] * self.num_envs
+        elif isinstance(seed, int):
+            seeds = list(worker_seeds(seed, self.num_envs))
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"reset: {len(seeds)} seeds for {self.num_envs} envs")
+        replies = self.workers.request_all("reset", [(s, options) for s in seeds])
+        infos: dict[str, Any] = {}
+        for i, (_, info) in enumerate(replies):
+            infos = self._add_info(infos, info, i)
+        return np.stack([observation for observation, _ in replies]), infos
+
+    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        replies = self.workers.request_all("step", [int(a) for a in np.asarray(actions).reshape(self.num_envs)])
+        infos: dict[str, Any] = {}
+        for i, (_, _, _, _, info, final) in enumerate(replies):
+            if final is not None:
+                infos = self._add_info(infos, {"final_obs": final[0], "final_info": final[1]}, i)
+            infos = self._add_info(infos, info, i)
+        observations = np.stack([reply[0] for reply in replies])
+        rewards = np.array([reply[1] for reply in replies], dtype=np.float64)
+        terminations = np.array([reply[2] for reply in replies], dtype=np.bool_)
+        truncations = np.array([reply[3] for reply in replies], dtype=np.bool_)
+        return observations, rewards, terminations, truncations, infos
+
+    def close_extras(self, **kwargs: Any) -> None:
+        self.workers.close()
+
+
+def make_vector_env(task: TaskSpec[Any], n: int, backend: str = "ros", seed: int | None = 0,
+                    params: TaskParams | None = None, **kwargs: Any) -> RobotVectorEnv:
+    """N envs of `task` in worker processes, as a gymnasium VectorEnv (see EnvWorkers for the arguments)."""
+    return RobotVectorEnv(EnvWorkers(task, n, backend=backend, seed=seed, params=params, **kwargs))

@@ -1,0 +1,55 @@
+"""Helper of test_sim_node.py: the lockstep step and reset answered with every sensor's message.
+
+Subscribes to every sensor topic of the hopper's sim, then resets and steps with commands in the
+request (and once with a bad request), and prints one JSON object: whether each answer's messages are
+the very messages published on the topics, the errors of the bad requests, and the joint positions
+the commands moved."""
+import json
+
+import rospy
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import Imu, JointState
+
+from gazebo_msgs.msg import ContactsState
+from pybullet_sim.client import SensorSubscriber, SimConnection, SimConnectionError
+
+TIMEOUT = 10.0
+TOPICS = {"joint_states": ("/monoped/joint_states", JointState), "odometry": ("/odom", Odometry),
+          "imu": ("/monoped/imu/data", Imu), "contacts": ("/lowerleg_contactsensor_state", ContactsState)}
+
+
+def same_as_published(readings, subscribers, marks) -> dict:
+    """Per field of the answer: its message equals the one that arrived on the topic (stamp included)."""
+    result = {}
+    for (field, subscriber), mark in zip(subscribers.items(), marks):
+        published = subscriber.wait_newer(mark, TIMEOUT)
+        answered = readings.joint_states if field == "joint_states" else getattr(readings, field)[0]
+        result[field] = answered == published
+    return result
+
+
+def main() -> None:
+    rospy.init_node("readings_client")
+    sim = SimConnection(timeout=TIMEOUT)
+    subscribers = {field: SensorSubscriber(topic, kind, lambda msg: msg) for field, (topic, kind) in TOPICS.items()}
+    for subscriber in subscribers.values():
+        subscriber.wait_for_connection(TIMEOUT)
+    sim.pause()
+    marks = [s.count for s in subscribers.values()]
+    reset = same_as_published(sim.reset(restart_time=True), subscribers, marks)
+    marks = [s.count for s in subscribers.values()]
+    controllers = ["haa_joint_position_controller", "hfe_joint_position_controller", "kfe_joint_position_controller"]
+    answer = sim.step_with(200, controllers, [0.3, -0.2, -0.4])
+    step = same_as_published(answer.readings, subscribers, marks)
+    errors = []
+    for names, values in ((["no_such_controller"], [1.0]), (controllers, [0.0])):
+        try:
+            sim.step_with(1, names, values)
+        except SimConnectionError as error:
+            errors.append(str(error))
+    print(json.dumps({"reset": reset, "step": step, "stamp": answer.stamp.to_sec(),
+                      "positions": list(answer.readings.joint_states.position), "errors": errors}))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,166 @@
+"""Stable-Baselines3 on our envs without a master (direct backend): SB3's check_env on every task, the
+VecEnv contract of RobotVecEnv (N worker processes), DQN and PPO training that writes every results file,
+resume from model.zip's weights and agent.json's counters, and evaluation of a deep run."""
+import json
+
+import numpy as np
+import pytest
+from stable_baselines3 import DQN
+from stable_baselines3.common.env_checker import check_env
+from stable_baselines3.common.vec_env import VecCheckNan, VecMonitor
+
+from hopper_training import TASKS as HOPPER_TASKS
+from moving_cube_training import TASKS as CUBE_TASKS
+from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from robot_rl.deep import DeepTrainer, EpisodeSchedule, build_model, load_agent_params, make_vec_env
+from robot_rl.evaluation import TrainedRun, evaluate
+from robot_rl.params import ParamError
+from robot_rl.results import DEEP_CHECKPOINT, RunDirectory
+from robot_rl.task import make_env
+from robot_rl.vector import worker_seeds
+
+
+@pytest.mark.parametrize("task", [*CUBE_TASKS, *HOPPER_TASKS], ids=lambda t: t.env_id)
+def test_sb3_check_env_passes_on_every_task(task):
+    env = make_env(task, backend="direct")
+    try:
+        check_env(env.unwrapped, warn=True)
+    finally:
+        env.close()
+
+
+def cube_params(**changes):
+    return ONE_DISK_WALK.default_params().with_changes("test", **{"nsteps": 8, **changes})
+
+
+def test_vec_env_contract_with_sb3_wrappers():
+    venv = VecMonitor(VecCheckNan(make_vec_env(ONE_DISK_WALK, 2, "direct", 0, cube_params()), raise_exception=True))
+    try:
+        assert venv.seed(11) == worker_seeds(11, 2)
+        observations = venv.reset()
+        assert observations.shape == (2, 6) and observations.dtype == np.float32
+        dones_seen = 0
+        for _ in range(20):
+            venv.step_async(np.array([0, 3]))
+            observations, rewards, dones, infos = venv.step_wait()
+            assert observations.shape == (2, 6) and rewards.shape == (2,) and dones.dtype == np.bool_
+            for i in np.flatnonzero(dones):
+                dones_seen += 1
+                assert infos[i]["terminal_observation"].shape == (6,)
+                assert infos[i]["TimeLimit.truncated"] == (infos[i]["episode"]["l"] == 8 and not infos[i]["fell"])
+                assert "y_travelled" in infos[i], "the episode's last info (the task's) comes with it"
+        assert dones_seen >= 4
+        assert venv.get_attr("running_step") == [0.06, 0.06]
+        assert venv.env_method("_settle_time", indices=[1]) == [0.15]
+        venv.set_attr("custom_mark", 5, indices=0)
+        assert venv.get_attr("custom_mark", indices=[0]) == [5]
+    finally:
+        venv.close()
+
+
+def test_the_same_seed_gives_the_same_first_observations():
+    firsts = []
+    for _ in range(2):
+        venv = make_vec_env(ONE_DISK_WALK, 2, "direct", 4, cube_params())
+        try:
+            venv.seed(4)
+            firsts.append(venv.reset())
+        finally:
+            venv.close()
+    np.testing.assert_array_equal(*firsts)
+
+
+def test_agent_params_are_validated_with_one_line_naming_the_key(tmp_path):
+    assert load_agent_params("dqn").hidden_units == 64
+    bad = tmp_path / "dqn.yaml"
+    bad.write_text((load_agent_params("dqn").to_mapping() | {"batch_size": 0}).__repr__().replace("'", '"'))
+    with pytest.raises(ParamError, match=f"{bad}: parameter 'batch_size' = 0 out of range"):
+        load_agent_params("dqn", bad)
+    with pytest.raises(ParamError, match="unknown agent 'a2c'"):
+        load_agent_params("a2c")
+
+
+def test_episode_schedule_falls_over_its_share_of_the_episodes():
+    schedule = EpisodeSchedule(1.0, 0.1, 0.5)
+    values = []
+    for progress in (0.0, 0.25, 0.5, 0.9):
+        schedule.progress = progress
+        values.append(schedule(1.0))
+    assert values == pytest.approx([1.0, 0.55, 0.1, 0.1])
+
+
+def train(tmp_path, agent, envs, resume=False, nepisodes=6, max_steps=None, log=None):
+    params = cube_params(nepisodes=nepisodes)
+    run = RunDirectory.latest(tmp_path, "moving_cube-" + agent, DEEP_CHECKPOINT) if resume else \
+        RunDirectory.create(tmp_path, "moving_cube-" + agent, params.to_mapping(), ONE_DISK_WALK.metric_names,
+                            checkpoint_name=DEEP_CHECKPOINT)
+    agent_params = load_agent_params(agent).with_changes("test", **({"learning_starts": 10} if agent == "dqn"
+                                                                     else {"n_steps": 16, "batch_size": 16}))
+    env = make_vec_env(ONE_DISK_WALK, envs, "direct", params.seed, params) if envs > 1 else \
+        make_env(ONE_DISK_WALK, params=params, backend="direct", seed=params.seed)
+    lines = [] if log is None else log
+    trainer = DeepTrainer(env, ONE_DISK_WALK, params, agent, agent_params, run, log=lines.append, resume=resume,
+                          checkpoint_every=2, max_steps=max_steps)
+    try:
+        return run, trainer.train()
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize(("agent", "envs"), [("dqn", 1), ("ppo", 2)])
+def test_a_deep_run_writes_every_results_file(tmp_path, agent, envs):
+    log = []
+    run, summary = train(tmp_path, agent, envs, log=log)
+    for name in ("episodes.csv", "params.yaml", "learning_curve.png", "summary.json", "model.zip", "agent.json"):
+        assert (run.path / name).is_file(), name
+    records = run.read_episodes()
+    assert [r.episode for r in records] == list(range(1, 7))
+    assert all(1 <= r.steps <= 8 for r in records)
+    assert set(records[0].metrics) == {"y_distance", "success"}
+    assert summary["completed"] and summary["episodes"] == 6 and summary["agent"] == agent
+    assert summary["env_steps"] >= sum(r.steps for r in records)
+    checkpoint = json.loads((run.path / "agent.json").read_text())
+    assert (checkpoint["episode"], checkpoint["agent"], checkpoint["envs"]) == (6, agent, envs)
+    assert sum(line.startswith("EP: ") for line in log) == 6
+    if envs > 1:
+        assert any(" - env 2/2 (episodes per env: " in line for line in log)
+    if agent == "dqn":
+        assert all(0.0 <= r.epsilon <= 1.0 for r in records) and records[-1].epsilon < records[0].epsilon
+
+
+def test_resume_continues_from_the_weights_and_counters(tmp_path):
+    run, first = train(tmp_path, "dqn", 1, nepisodes=4)
+    weights = DQN.load(run.model_zip).q_net.state_dict()  # a test may unpickle its own file
+    log = []
+    _, second = train(tmp_path, "dqn", 1, resume=True, nepisodes=8, log=log)
+    assert log[0].startswith(f"Resuming {run.path} after episode 4 ({first['env_steps']} env steps)")
+    assert [r.episode for r in run.read_episodes()] == list(range(1, 9))
+    assert second["completed"] and second["env_steps"] > first["env_steps"]
+    resumed = build_model("dqn", load_agent_params("dqn"), make_env(ONE_DISK_WALK, backend="direct"), 0.95, 0)
+    resumed.set_parameters(str(run.model_zip))
+    assert any(not np.array_equal(weights[k].numpy(), v.numpy()) for k, v in resumed.q_net.state_dict().items()), \
+        "the resumed run trained on"
+
+
+def test_resume_refuses_another_agents_checkpoint(tmp_path):
+    run, _ = train(tmp_path, "dqn", 1, nepisodes=2)
+    checkpoint = json.loads((run.path / "agent.json").read_text())
+    checkpoint["agent"] = "ppo"
+    (run.path / "agent.json").write_text(json.dumps(checkpoint))
+    with pytest.raises(ValueError, match="agent.json: not a usable checkpoint: it is of agent 'ppo', this run "
+                                         "trains 'dqn'"):
+        train(tmp_path, "dqn", 1, resume=True, nepisodes=4)
+
+
+def test_a_step_budget_ends_training_and_drives_dqn_exploration(tmp_path):
+    run, summary = train(tmp_path, "dqn", 1, nepisodes=1000, max_steps=40)
+    assert summary["env_steps"] == 40 and summary["completed"] and summary["episodes"] < 1000
+
+
+def test_evaluate_runs_the_deep_policy_greedily(tmp_path):
+    run, _ = train(tmp_path, "dqn", 1)
+    trained = TrainedRun(run.path, list(CUBE_TASKS))
+    assert trained.deep and trained.qlearn is None
+    reports = [evaluate(trained, episodes=2, horizon_s=0.6, backend="direct", seed=3) for _ in range(2)]
+    assert reports[0] == reports[1], "a deterministic policy on the direct backend repeats"
+    assert set(reports[0]["greedy"]) == {"mean_return", "mean_y_distance", "success_rate"}

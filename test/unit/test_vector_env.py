@@ -1,0 +1,149 @@
+"""Vector envs on the direct backend (worker processes, no master): seeds per worker, the gymnasium
+VectorEnv contract with SAME_STEP autoreset, determinism, errors in a worker, and no process left."""
+import json
+import os
+
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode
+
+from hopper_training.monoped_env import STAY_UP
+from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from robot_rl.task import make_env
+from robot_rl.vector import EnvWorkers, WorkerError, make_vector_env, worker_seeds
+
+
+def alive(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def short(task, nsteps):
+    return task.default_params().with_changes("test", nsteps=nsteps)
+
+
+def test_worker_seeds_repeat_differ_and_fit_a_ros_int():
+    seeds = worker_seeds(7, 4)
+    assert seeds == worker_seeds(7, 4)
+    assert len(set(seeds)) == 4
+    assert worker_seeds(7, 2) == seeds[:2], "adding workers leaves the first workers' seeds alone"
+    assert set(worker_seeds(8, 4)).isdisjoint(seeds)
+    assert all(0 <= s < 2**31 for s in seeds + worker_seeds(None, 8))
+    assert worker_seeds(None, 3) != worker_seeds(None, 3), "no seed: fresh entropy"
+
+
+def test_bad_arguments_fail_with_one_clear_error():
+    with pytest.raises(ValueError, match="number of envs must be a whole number >= 1, got 0"):
+        EnvWorkers(ONE_DISK_WALK, 0, backend="direct")
+    with pytest.raises(ValueError, match="backend must be 'ros' or 'direct', got 'gazebo'"):
+        EnvWorkers(ONE_DISK_WALK, 1, backend="gazebo")
+
+
+@pytest.mark.parametrize("task", [ONE_DISK_WALK, STAY_UP], ids=["cube", "hopper"])
+def test_reset_step_close_contract(task):
+    params = short(task, 5)
+    env = make_vector_env(task, 2, backend="direct", seed=3, params=params)
+    pids = [info["pid"] for info in env.workers.worker_info]
+    try:
+        assert env.num_envs == 2 and env.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
+        assert env.single_observation_space == make_env(task, params=params).observation_space
+        observations, infos = env.reset(seed=3)
+        assert observations.shape == (2, *env.single_observation_space.shape)
+        assert observations in env.observation_space
+        assert infos["_sim_time"].all()
+        ends = 0
+        for step in range(1, 13):
+            observations, rewards, terminations, truncations, infos = env.step(np.array([0, 1]))
+            assert observations in env.observation_space
+            assert rewards.dtype == np.float64 and terminations.dtype == truncations.dtype == np.bool_
+            done = terminations | truncations
+            if done.any():
+                ends += int(done.sum())
+                assert (infos["_final_obs"] == done).all()
+                for i in np.flatnonzero(done):
+                    assert infos["final_obs"][i] in env.single_observation_space
+                    assert infos["final_info"]["_sim_time"][i], "the episode's last info is kept"
+            if step % 5 == 0:
+                assert truncations.all() or terminations.any(), "nsteps 5: every episode ends by step 5"
+        assert ends >= 4, "the envs reset themselves and went on (SAME_STEP autoreset)"
+    finally:
+        env.close()
+    assert not any(alive(pid) for pid in pids), "close() ends every worker"
+    with pytest.raises(WorkerError, match="closed"):
+        env.workers.send(0, "step", 0)
+
+
+def test_same_seed_same_trajectories_and_each_worker_its_own():
+    def run(seed):
+        env = make_vector_env(ONE_DISK_WALK, 2, backend="direct", seed=seed, params=short(ONE_DISK_WALK, 50))
+        try:
+            trajectory = [env.reset(seed=seed)[0]]
+            for action in [0, 0, 3, 1, 2, 4, 0, 0]:
+                trajectory.append(env.step([action, action])[0])
+            return np.array(trajectory)
+        finally:
+            env.close()
+    first, again, other = run(5), run(5), run(6)
+    np.testing.assert_array_equal(first, again)
+    assert not np.array_equal(first[:, 0], first[:, 1]), "each worker has its own noise seed"
+    assert not np.array_equal(first, other)
+
+
+def test_an_exception_in_a_worker_names_it_and_the_others_close_cleanly():
+    env = make_vector_env(ONE_DISK_WALK, 2, backend="direct", seed=0, params=short(ONE_DISK_WALK, 50))
+    pids = [info["pid"] for info in env.workers.worker_info]
+    try:
+        env.reset(seed=0)
+        with pytest.raises(WorkerError, match=r"worker 1 \(direct\) failed: ValueError: action 99 is not in"):
+            env.step([0, 99])
+    finally:
+        env.close()
+    assert not any(alive(pid) for pid in pids)
+
+
+def test_a_worker_that_cannot_make_its_env_fails_the_start_with_its_error(tmp_path):
+    with pytest.raises(WorkerError, match="worker 0 \\(direct\\) failed: .*render_mode must be one of"):
+        EnvWorkers(ONE_DISK_WALK, 1, backend="direct", render_mode="holographic")
+
+
+def vector_train(tmp_path, nepisodes, resume=False, log=None, run_name="run"):
+    from robot_rl.results import RunDirectory
+    from robot_rl.vector_training import VectorQLearningTrainer
+    params = short(ONE_DISK_WALK, 15).with_changes("test", nepisodes=nepisodes)
+    run = RunDirectory(tmp_path / "moving_cube" / run_name) if resume else \
+        RunDirectory.create(tmp_path, "moving_cube", params.to_mapping(), ONE_DISK_WALK.metric_names, run_name)
+    env = make_vector_env(ONE_DISK_WALK, 2, backend="direct", seed=params.seed, params=params)
+    lines = [] if log is None else log
+    try:
+        trainer = VectorQLearningTrainer(env, ONE_DISK_WALK, params, run, log=lines.append, resume=resume,
+                                         checkpoint_every=3)
+        return run, trainer.train()
+    finally:
+        env.close()
+
+
+def test_tabular_q_learning_from_two_envs_fills_one_table_and_repeats(tmp_path):
+    log = []
+    run, summary = vector_train(tmp_path / "a", 6, log=log)
+    records = run.read_episodes()
+    assert [r.episode for r in records] == [1, 2, 3, 4, 5, 6] and summary["completed"]
+    episode_lines = [line for line in log if line.startswith("EP: ")]
+    assert len(episode_lines) == 6 and episode_lines[-1].endswith("(episodes per env: 3, 3)")
+    assert {line.split(" - env ")[1][:3] for line in episode_lines} == {"1/2", "2/2"}
+    assert [round(r.epsilon, 6) for r in records] == sorted((round(r.epsilon, 6) for r in records), reverse=True)
+    checkpoint = json.loads(run.qtable_json.read_text())
+    assert checkpoint["episode"] == 6 and checkpoint["state"]["env_steps"] == sum(r.steps for r in records)
+    again, _ = vector_train(tmp_path / "b", 6)
+    assert [(r.steps, r.return_) for r in again.read_episodes()] == [(r.steps, r.return_) for r in records]
+    assert json.loads(again.qtable_json.read_text())["qlearn"] == checkpoint["qlearn"]
+
+
+def test_tabular_q_learning_from_two_envs_resumes(tmp_path):
+    run, _ = vector_train(tmp_path, 3)
+    log = []
+    _, summary = vector_train(tmp_path, 7, resume=True, log=log)
+    assert log[0].startswith(f"Resuming {run.path} after episode 3")
+    assert [r.episode for r in run.read_episodes()] == list(range(1, 8)) and summary["episodes"] == 7
