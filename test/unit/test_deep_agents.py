@@ -108,9 +108,12 @@ def train(tmp_path, agent, envs, resume=False, nepisodes=6, max_steps=None, log=
 
 
 @pytest.mark.parametrize(("agent", "envs"), [("dqn", 1), ("ppo", 2)])
-def test_a_deep_run_writes_every_results_file(tmp_path, agent, envs):
+def test_a_deep_run_writes_every_results_file(tmp_path, agent, envs, monkeypatch):
+    # SB3's default logger would make a folder under SB3_LOGDIR (else /tmp/SB3-<date>) at every learn().
+    monkeypatch.setenv("SB3_LOGDIR", str(tmp_path / "sb3_log"))
     log = []
     run, summary = train(tmp_path, agent, envs, log=log)
+    assert not (tmp_path / "sb3_log").exists(), "SB3's logger wrote a folder"
     for name in ("episodes.csv", "params.yaml", "learning_curve.png", "summary.json", "model.zip", "agent.json"):
         assert (run.path / name).is_file(), name
     records = run.read_episodes()

@@ -38,6 +38,7 @@ import torch
 from stable_baselines3 import DQN, PPO
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 
 from .params import ParamError, Params, TaskParams, load_yaml_file, param
@@ -103,12 +104,15 @@ def load_agent_params(agent: str, path: Path | None = None) -> NetworkParams:
 
 def build_model(agent: str, agent_params: NetworkParams, env: VecEnv | gymnasium.Env[Any, Any], gamma: float,
                 seed: int) -> BaseAlgorithm:
-    """The SB3 model of `agent` with these params, on the CPU."""
+    """The SB3 model of `agent` with these params, on the CPU, with a logger that writes nothing (SB3's
+    default one makes an empty folder /tmp/SB3-<date> at every learn())."""
     values = agent_params.to_mapping()
     network = [values.pop("hidden_units")] * values.pop("hidden_layers")
     policy_kwargs = {"net_arch": network} if agent == "dqn" else {"net_arch": {"pi": network, "vf": network}}
-    return ALGORITHMS[agent]("MlpPolicy", env, gamma=gamma, seed=seed, device="cpu", verbose=0,
-                             policy_kwargs=policy_kwargs, **values)
+    model = ALGORITHMS[agent]("MlpPolicy", env, gamma=gamma, seed=seed, device="cpu", verbose=0,
+                              policy_kwargs=policy_kwargs, **values)
+    model.set_logger(Logger(folder=None, output_formats=[]))
+    return model
 
 
 class EpisodeSchedule:
