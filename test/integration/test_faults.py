@@ -221,6 +221,8 @@ def test_a_urdf_that_is_not_xml_stops_training_with_the_sims_error_only(master, 
     <arg name="results_dir" value="{tmp_path / 'results'}"/><arg name="quiet" value="false"/>
     <arg name="gui" value="false"/><arg name="robot_state_publisher" value="false"/>
     <arg name="rviz" value="false"/><arg name="video" value="false"/>
+    <arg name="agent" value="qlearn"/><arg name="agent_config" value=""/><arg name="max_steps" value="0"/>
+    <arg name="envs" value="1"/>
   </include>
   <node pkg="moving_cube_training" type="start_training.py" name="movingcube_gym" output="screen" required="true"/>
 </launch>""")
