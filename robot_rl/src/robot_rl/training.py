@@ -149,6 +149,10 @@ class QLearningTrainer:
         """Back to the start of the episode that could not finish, then checkpoint and summary (incomplete)."""
         self.qlearn.q, self.qlearn.epsilon, rng_state = self._episode_start
         self.qlearn.rng.setstate(rng_state)
+        self._save_quietly(reason)
+
+    def _save_quietly(self, reason: str) -> None:
+        """Checkpoint and summary (incomplete, `reason`); a failure to write is logged, not raised."""
         try:
             self.checkpoint()
             self.finish(stopped=reason)

@@ -32,13 +32,6 @@ class VectorQLearningTrainer(QLearningTrainer):
         if self.qlearn.epsilon > self.params.epsilon_min:
             self.qlearn.epsilon *= self.params.epsilon_discount
 
-    def _save_quietly(self, reason: str) -> None:
-        try:
-            self.checkpoint()
-            self.finish(stopped=reason)
-        except OSError as error:  # the original error matters more; say why nothing was saved
-            self.log(f"could not save the run after episode {self.state.episode}: {error}")
-
     def train(self) -> dict[str, Any]:
         try:
             self._train()
