@@ -44,7 +44,7 @@ def launch_args(package: str, launch_file: str) -> set[str]:
 def script_options(package: str, script: str) -> str:
     path = Path(rospkg.RosPack().get_path(package)) / "scripts" / script
     assert path.is_file(), f"{package}/scripts/{script} does not exist"
-    if script != "evaluate.py":
+    if script not in ("evaluate.py", "compare_agents.py"):  # the scripts with options in the README
         return ""
     return subprocess.run(["rosrun", package, script, "--help"], capture_output=True, text=True, timeout=60).stdout
 
