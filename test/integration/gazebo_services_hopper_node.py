@@ -176,12 +176,17 @@ class HopperGazeboServicesTest(unittest.TestCase):
     def test_the_controller_reset_restarts_a_position_controller_where_the_joint_is(self):
         self.step(200)  # stand on the foot
         self.commands[1].publish(0.6)
-        self.step(40)  # hfe is on its way to 0.6
-        angle = self.joints.latest.position[1]
+        angle = self.hfe_after(40)  # hfe is on its way to 0.6
+        self.assertGreater(angle, 0.01)
         self.assertLess(angle, 0.45)
         self.controllers.reset_controllers()  # restarted, hfe holds the angle it has now
-        self.step(300)
-        self.assertAlmostEqual(self.joints.latest.position[1], angle, delta=0.05, msg="hfe went on towards 0.6")
+        self.assertAlmostEqual(self.hfe_after(300), angle, delta=0.05, msg="hfe went on towards 0.6")
+
+    def hfe_after(self, steps):
+        """hfe's angle in the joint_states message of the step's new time (not an older one still in flight)."""
+        mark = self.joints.count
+        stamp = self.step(steps).header.stamp
+        return self.joints.wait_newer(mark, TIMEOUT, stamp).position[1]
 
     def test_strict_switch_with_an_unknown_name_changes_nothing(self):
         ok = self.switch(start_controllers=[], stop_controllers=["hfe_joint_position_controller", "no_such"],
