@@ -33,7 +33,7 @@ def test_two_runs_with_the_same_seed_give_identical_odom_streams(tmp_path):
     assert streams[0] != streams[2], "a different seed should give different noise"
 
 
-def test_step_and_reset_answer_with_the_messages_they_publish(tmp_path):
+def test_step_and_reset_answer_with_the_messages_they_publish_or_their_packed_values(tmp_path):
     master = RosMaster(tmp_path, cwd=REPO)
     try:
         master.start(["roslaunch", "pybullet_sim", "hopper_sim.launch", *launch_args(paused="true")])
@@ -44,6 +44,11 @@ def test_step_and_reset_answer_with_the_messages_they_publish(tmp_path):
     report = json.loads(result.stdout.strip().splitlines()[-1])
     every = {"joint_states": True, "odometry": True, "imu": True, "contacts": True}
     assert report["reset"] == every and report["step"] == every
+    # Packed: the same values as the messages published on the topics (subscribed here), contacts included.
+    for step in report["packed_steps"]:
+        assert step == {**every, "contact_points": step["contact_points"]}
+    assert report["packed_steps"][-1]["contact_points"] >= 1, "the standing hopper's foot should touch the ground"
+    assert report["packed_reset"] == {**every, "contact_points": report["packed_reset"]["contact_points"]}
     assert report["stamp"] == 0.2
     # The commands in the request moved the joints towards their targets within 0.2 s (PID p = 10).
     assert report["positions"][0] > 0.1 and report["positions"][1] < -0.05 and report["positions"][2] < -0.1

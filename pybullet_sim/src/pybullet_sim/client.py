@@ -19,8 +19,8 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Empty
 
 from gazebo_msgs.srv import GetPhysicsProperties
-from pybullet_sim.msg import Readings
-from pybullet_sim.srv import Render, RenderRequest, Reset, Step, StepRequest, StepResponse
+from pybullet_sim.msg import PackedReadings, Readings
+from pybullet_sim.srv import Render, RenderRequest, Reset, ResetRequest, Step, StepRequest, StepResponse
 
 from .messages import image_array
 
@@ -247,21 +247,27 @@ class SimConnection:
         request.steps = steps
         request.command_topics = [c.topic for c in commands]
         request.command_counts = [c.count for c in commands]
-        request.controllers, request.commands, request.return_readings = [], [], False
+        request.controllers, request.commands, request.return_readings, request.packed = [], [], False, False
         return self._call(STEP_SERVICE, self._step, request).stamp
 
-    def step_with(self, steps: int, controllers: list[str], values: list[float]) -> StepResponse:
+    def step_with(self, steps: int, controllers: list[str], values: list[float], packed: bool = False) -> StepResponse:
         """Command `controllers` to `values`, advance the paused sim `steps` physics steps, and return the
-        answer: the new sim time and every sensor's message of it (`readings`)."""
+        answer: the new sim time and every sensor's message of it (`readings`), or with `packed` their
+        values (`packed`, a PackedReadings: see pybullet_sim.readings.unpack_readings)."""
         request = self._request
         request.steps = steps
         request.command_topics, request.command_counts = [], []
-        request.controllers, request.commands, request.return_readings = controllers, values, True
+        request.controllers, request.commands = controllers, values
+        request.return_readings, request.packed = True, packed
         return self._call(STEP_SERVICE, self._step, request)
 
     def reset(self, restart_time: bool) -> Readings:
         """Gazebo's reset_world (or with `restart_time` reset_simulation); returns every sensor's message after it."""
-        return self._call(RESET_SERVICE, self._reset, restart_time).readings
+        return self._call(RESET_SERVICE, self._reset, ResetRequest(restart_time, False)).readings
+
+    def reset_packed(self, restart_time: bool) -> PackedReadings:
+        """reset(), answered with the sensors' values as a PackedReadings instead of their messages."""
+        return self._call(RESET_SERVICE, self._reset, ResetRequest(restart_time, True)).packed
 
     def render(self, width: int, height: int) -> np.ndarray:
         """An RGB image (height x width x 3, uint8) of the robot from the sim's following camera."""

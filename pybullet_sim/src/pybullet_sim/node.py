@@ -63,7 +63,7 @@ from gazebo_msgs.srv import (
     SetPhysicsProperties,
     SetPhysicsPropertiesResponse,
 )
-from pybullet_sim.msg import Readings
+from pybullet_sim.msg import PackedReadings, Readings
 from pybullet_sim.srv import Render, RenderResponse, Reset, ResetResponse, Step, StepRequest, StepResponse
 
 from . import messages, physics_properties
@@ -71,6 +71,7 @@ from .client import RENDER_SERVICE, RESET_SERVICE, STEP_SERVICE, synchronous_pub
 from .config import ConfigError, SensorConfig, parse_robot_config
 from .controller_manager import ControllerManager
 from .physics_properties import OdeConfig, PhysicsProperties
+from .readings import JointStateReading, pack_readings
 from .world import UrdfError, World, absolute_state, relative_state
 
 _SENSOR_MESSAGES = {"p3d": (Odometry, messages.odometry_msg), "imu": (Imu, messages.imu_msg),
@@ -214,23 +215,32 @@ class SimNode:
         nanoseconds = self.world.time_ns
         return rospy.Time(nanoseconds // 1_000_000_000, nanoseconds % 1_000_000_000)
 
-    def _publish_joint_states(self, stamp) -> JointState:
-        """Publish joint_states (a stopped joint_state_controller publishes nothing: then an empty message)."""
+    def _publish_joint_states(self, stamp, message_wanted: bool) -> tuple[JointStateReading, JointState | None]:
+        """Publish joint_states (a stopped joint_state_controller publishes nothing: then an empty reading
+        and message). The message is built only for a subscriber or when `message_wanted`."""
         if not self.controllers.joint_states_running:
             msg = JointState()
             msg.header.stamp = stamp
-            return msg
-        msg = messages.joint_state_msg(self.world.read_joint_states(), stamp)
+            return JointStateReading(self.world.time, (), (), (), ()), msg
+        reading = self.world.read_joint_states()
+        if not (message_wanted or self._joint_pub.get_num_connections()):
+            return reading, None
+        msg = messages.joint_state_msg(reading, stamp)
         self._joint_pub.publish(msg)
-        return msg
+        return reading, msg
 
-    def _publish_sensor(self, sensor: SensorConfig, publisher, to_msg, stamp):
-        msg = to_msg(self.world.read_sensor(sensor), stamp)
-        publisher.publish(msg)
+    def _publish_sensor(self, sensor: SensorConfig, publisher, to_msg, stamp, message_wanted: bool):
+        """Read a sensor (always: its noise stream advances once per publication) and publish it; the message
+        is built only for a subscriber or when `message_wanted`. Returns (reading, message or None)."""
+        reading = self.world.read_sensor(sensor)
+        msg = None
+        if message_wanted or publisher.get_num_connections():
+            msg = to_msg(reading, stamp)
+            publisher.publish(msg)
         if sensor.type == "p3d" and self._tf.pub_tf.get_num_connections():
             position, orientation = self.world.link_pose(sensor.link)
             self._tf.sendTransform(messages.transform_msg(sensor.frame_id, sensor.link, position, orientation, stamp))
-        return msg
+        return reading, msg
 
     def _publish_clock(self, stamp, force: bool = False):
         """/clock at most ~pub_clock_frequency times per wall second, as gazebo_ros throttles it."""
@@ -239,14 +249,21 @@ class SimNode:
             self._last_clock_wall = now
             self._clock_pub.publish(Clock(clock=stamp))
 
-    def _publish_all(self, force_clock: bool = False) -> Readings:
-        """Publish every sensor once stamped now (after a lockstep step or a reset), and /clock if due;
-        returns the messages published."""
+    def _publish_all(self, force_clock: bool = False, answer: str | None = None) -> Readings | PackedReadings | None:
+        """Publish every sensor once stamped now (after a lockstep step or a reset), and /clock if due.
+        Returns, as `answer` asks, the messages published ("messages"), their values ("packed"), or None."""
         stamp = self._stamp()
         self._publish_clock(stamp, force_clock)
-        readings = Readings(joint_states=self._publish_joint_states(stamp))
-        for sensor, publisher, to_msg in self._sensor_pubs:
-            msg = self._publish_sensor(sensor, publisher, to_msg, stamp)
+        wanted = answer == "messages"
+        joints, joint_msg = self._publish_joint_states(stamp, wanted)
+        published = [(sensor, *self._publish_sensor(sensor, publisher, to_msg, stamp, wanted))
+                     for sensor, publisher, to_msg in self._sensor_pubs]
+        if answer == "packed":
+            return PackedReadings(*pack_readings(joints, [reading for _, reading, _ in published]))
+        if answer != "messages":
+            return None
+        readings = Readings(joint_states=joint_msg)
+        for sensor, _, msg in published:
             getattr(readings, READINGS_FIELDS[sensor.type]).append(msg)
         return readings
 
@@ -256,10 +273,10 @@ class SimNode:
         stamp = self._stamp()
         self._publish_clock(stamp)
         if self._joint_schedule.due(count):
-            self._publish_joint_states(stamp)
+            self._publish_joint_states(stamp, False)
         for (sensor, publisher, to_msg), schedule in zip(self._sensor_pubs, self._sensor_schedules):
             if schedule.due(count):
-                self._publish_sensor(sensor, publisher, to_msg, stamp)
+                self._publish_sensor(sensor, publisher, to_msg, stamp, False)
 
     def _make_schedules(self):
         """Each stream's period in physics steps (again after the time step changes), from the next step."""
@@ -369,10 +386,13 @@ class SimNode:
             for controller, value in zip(request.controllers, request.commands):
                 self._command(controller, value, f"{STEP_SERVICE} (controller {controller})", caller)
             self._step_world(request.steps)
-            readings = self._publish_all()
-            if request.return_readings:
-                return StepResponse(stamp=self._stamp(), readings=readings)
-            return StepResponse(stamp=self._stamp())
+            answer = (("packed" if request.packed else "messages") if request.return_readings else None)
+            readings = self._publish_all(answer=answer)
+            if readings is None:
+                return StepResponse(stamp=self._stamp())
+            if request.packed:
+                return StepResponse(stamp=self._stamp(), packed=readings)
+            return StepResponse(stamp=self._stamp(), readings=readings)
 
     def _handle_reset(self, request):
         with self._exclusive():
@@ -381,7 +401,9 @@ class SimNode:
                 self._restart_schedules()
             else:
                 self.world.reset_world()
-            return ResetResponse(readings=self._publish_all(force_clock=True))
+            if request.packed:
+                return ResetResponse(packed=self._publish_all(force_clock=True, answer="packed"))
+            return ResetResponse(readings=self._publish_all(force_clock=True, answer="messages"))
 
     # -- Gazebo's physics, world and model services ---------------------------------------------
     def _handle_get_physics(self, _request):

@@ -4,8 +4,8 @@ Both backends expose the same three calls, each returning the same `Readings`:
 `reset(restart_time)`, `set_command(controller, value)` + `step(physics_steps)`; and the same
 `render(width, height)`, an RGB frame from the sim's camera that follows the robot. The ROS backend
 is lockstep: one call of the sim's step service carries the commands, advances the paused sim exactly
-N physics steps and answers with every sensor's message of the new time (which the sim also
-publishes on the sensors' topics).
+N physics steps and answers with every sensor's values at the new time (packed as numbers and names;
+the sim also publishes them on the sensors' topics for any subscriber).
 The direct backend makes the same calls on an in-process World and reads every sensor once per
 call, as the sim node publishes them once, so the same seed and actions give the same readings.
 """
@@ -21,7 +21,7 @@ import numpy as np
 import yaml
 
 from pybullet_sim.config import RobotConfig, parse_robot_config
-from pybullet_sim.readings import ContactReading, ImuReading, JointStateReading, OdometryReading
+from pybullet_sim.readings import ContactReading, ImuReading, JointStateReading, OdometryReading, unpack_readings
 
 if TYPE_CHECKING:
     from .task import RobotSpec
@@ -152,9 +152,10 @@ class RosBackend(Backend):
     """The robot behind a running sim node, in lockstep over ROS services.
 
     A step is one call of the sim's step service: it carries the commands set since the last step,
-    advances the paused sim, and answers with every sensor's message of the new time (the messages
-    the sim also publishes on the sensors' topics for other subscribers), so the env waits on one
-    socket and never on a topic. Resets go through the sim's reset service, answered the same way.
+    advances the paused sim, and answers with every sensor's values at the new time, packed as numbers
+    and names (the values of the messages the sim publishes on the sensors' topics for any subscriber),
+    so the env waits on one socket and never on a topic. Resets go through the sim's reset service,
+    answered the same way.
     The robot (topics, controllers, sensors) is read from the sim node's own parameters, so the env
     and the sim cannot disagree; `robot` is the robot the caller expects, checked against them.
     Makes this process a ROS node (init_ros_node) if it is not one yet. Pauses the sim for lockstep;
@@ -163,7 +164,6 @@ class RosBackend(Backend):
     def __init__(self, robot: RobotSpec, timeout: float = 10.0, sim_node: str = SIM_NODE):
         import rospy
 
-        from pybullet_sim import messages
         from pybullet_sim.client import SimConnection, SimConnectionError
 
         init_ros_node("robot_rl_env")
@@ -184,32 +184,24 @@ class RosBackend(Backend):
         self.gui = bool(params.get("gui", False))  # whether the sim node shows PyBullet's window
         self._controllers = {c.name for c in self.config.controllers}
         self._pending: dict[str, float] = {}  # commands for the next step
-        # Readings.msg holds each sensor type's messages in config order: (sensor name, field, index, converter).
-        fields = {"p3d": ("odometry", messages.odometry_reading), "imu": ("imu", messages.imu_reading),
-                  "contact": ("contacts", messages.contact_reading)}
-        counts: dict[str, int] = {}
-        self._layout: list[tuple[str, str, int, Any]] = []
-        for sensor in self.config.sensors:
-            field, convert = fields[sensor.type]
-            self._layout.append((sensor.name, field, counts.get(field, 0), convert))
-            counts[field] = counts.get(field, 0) + 1
-        self._joint_state_reading = messages.joint_state_reading
+        self._sensor_names = [sensor.name for sensor in self.config.sensors]
+        self._sensor_types = [sensor.type for sensor in self.config.sensors]
         self._was_running = not self.sim.is_paused()  # close() leaves the sim as it found it
         self.sim.pause()
 
-    def _readings(self, msg: Any) -> Readings:
-        """Readings from a pybullet_sim/Readings message."""
+    def _readings(self, packed: Any) -> Readings:
+        """Readings from a pybullet_sim/PackedReadings answer."""
         from pybullet_sim.client import SimConnectionError
         try:
-            sensors = {name: convert(getattr(msg, field)[index]) for name, field, index, convert in self._layout}
-        except IndexError:
-            raise SimConnectionError(f"the sim's answer lacks sensors of {', '.join(n for n, *_ in self._layout)} "
-                                     f"(does the sim node run another version of pybullet_sim?)") from None
-        return Readings(self._joint_state_reading(msg.joint_states), sensors)
+            joints, sensors = unpack_readings(packed.values, packed.names, self._sensor_types)
+        except ValueError as error:
+            raise SimConnectionError(f"the sim's answer does not fit the sensors {', '.join(self._sensor_names)}: "
+                                     f"{error} (does the sim node run another version of pybullet_sim?)") from None
+        return Readings(joints, dict(zip(self._sensor_names, sensors)))
 
     def reset(self, restart_time: bool = False) -> Readings:
         self._pending = {}  # a reset restarts the controllers, as in the World: earlier commands are gone
-        return self._readings(self.sim.reset(restart_time))
+        return self._readings(self.sim.reset_packed(restart_time))
 
     def set_command(self, controller: str, value: float) -> None:
         if controller not in self._controllers:
@@ -226,7 +218,8 @@ class RosBackend(Backend):
     def step(self, physics_steps: int) -> Readings:
         pending = self._pending
         self._pending = {}
-        return self._readings(self.sim.step_with(physics_steps, list(pending), list(pending.values())).readings)
+        answer = self.sim.step_with(physics_steps, list(pending), list(pending.values()), packed=True)
+        return self._readings(answer.packed)
 
     def render(self, width: int, height: int) -> np.ndarray:
         return self.sim.render(width, height)
