@@ -11,7 +11,9 @@ Each robot's control period (running_step) is read from its task config; --runni
 overrides it (e.g. hopper=0.02), and the table and the JSON say which was used.
 
 Sections (--sections, default all):
-- lockstep: one env over ROS (the sim node of a roslaunch'd sim launch) and direct (in-process).
+- lockstep: one env over ROS (the sim node of a roslaunch'd sim launch) and direct (in-process), and
+  where a step's CPU time goes: over ROS the client process and the sim node, direct the physics
+  (World.step) and the rest (reading the sensors, the task env).
 - scaling: robot_rl.vector's gymnasium vector env with N = 1, 2, 4 workers, over ROS (each worker
   with its own master and sim node) and direct; parallel efficiency = steps/s at N / (N x at 1); and
   the CPU time per env step of every process involved, which says whether a loss of efficiency is
@@ -76,22 +78,61 @@ def _make_env(robot: str, backend: str, running_step: float):
     return make_env(ROBOTS[robot].task, params=_params(robot, running_step), backend=backend)
 
 
+def _process_cpu_s(pid: int) -> float:
+    """CPU seconds (user + system) a process has used so far."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _sim_node_pid() -> int:
+    """The PID of the sim node on this process's master (from the node's own XML-RPC API)."""
+    import xmlrpc.client
+
+    import rosgraph
+    import rospy
+    uri = rosgraph.Master(rospy.get_name()).lookupNode("/pybullet_sim")
+    return int(xmlrpc.client.ServerProxy(uri).getPid(rospy.get_name())[2])
+
+
 def worker_lockstep(robot: str, backend: str, steps: int, running_step: float) -> dict:
+    """One env, random actions: env steps/s, and where the CPU time of a step goes (microseconds per env step):
+    over ROS this process (the task env and its service calls) and the sim node; direct the physics
+    (World.step) and everything else (sensors and the task env)."""
     import numpy as np
     if backend == "ros":
         import rospy
         rospy.init_node("bench_client")
     env = _make_env(robot, backend, running_step)
+    physics_s = [0.0]
+    if backend == "direct":
+        world = env.unwrapped.backend.world
+        world_step = world.step
+
+        def timed_step(count: int = 1) -> None:
+            start = time.thread_time()
+            world_step(count)
+            physics_s[0] += time.thread_time() - start
+        world.step = timed_step
+    sim_pid = _sim_node_pid() if backend == "ros" else None
     rng = np.random.default_rng(0)
     env.reset(seed=0)
-    start = time.perf_counter()
+    physics_s[0] = 0.0
+    start, cpu_start = time.perf_counter(), time.process_time()
+    sim_start = _process_cpu_s(sim_pid) if sim_pid else 0.0
     for _ in range(steps):
         _, _, terminated, truncated, _ = env.step(int(rng.integers(env.action_space.n)))
         if terminated or truncated:
             env.reset()
-    elapsed = time.perf_counter() - start
+    elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu_start
+    result = {"steps_per_s": steps / elapsed, "running_step": env.unwrapped.running_step}
+    if sim_pid:
+        result["cpu_us_per_step"] = {"client": 1e6 * cpu / steps,
+                                     "sim_node": 1e6 * (_process_cpu_s(sim_pid) - sim_start) / steps}
+    else:
+        result["cpu_us_per_step"] = {"physics": 1e6 * physics_s[0] / steps,
+                                     "sensors_and_task": 1e6 * (cpu - physics_s[0]) / steps}
     env.close()
-    return {"steps_per_s": steps / elapsed, "running_step": env.unwrapped.running_step}
+    return result
 
 
 def _tree_cpu_s() -> float:
@@ -278,6 +319,8 @@ def _rep(tmp: Path, rep: int, robot: str, running_step: float, sections: set[str
                              timeout=600)
         s["ros"].append(ros["steps_per_s"])
         s["direct"].append(direct["steps_per_s"])
+        for part, value in (*ros["cpu_us_per_step"].items(), *direct["cpu_us_per_step"].items()):
+            s[f"cpu_{part}"].append(value)
         s["ratio"].append(ros["steps_per_s"] / direct["steps_per_s"])
         _log(f"rep {rep + 1} {robot}: one env over ROS {ros['steps_per_s']:.0f}/s, "
              f"direct {direct['steps_per_s']:.0f}/s")
@@ -330,7 +373,10 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
         if "lockstep" in sections:
             r.update(ros_lockstep_steps_per_s=median(s["ros"]), direct_steps_per_s=median(s["direct"]),
                      ratio_ros_to_direct=median(s["ratio"]),
-                     ros_lockstep_real_time_factor=median(s["ros"]) * running_steps[robot])
+                     ros_lockstep_real_time_factor=median(s["ros"]) * running_steps[robot],
+                     cpu_us_per_step={"ros": {part: median(s[f"cpu_{part}"]) for part in ("client", "sim_node")},
+                                      "direct": {part: median(s[f"cpu_{part}"])
+                                                 for part in ("physics", "sensors_and_task")}})
         if "scaling" in sections:
             r["scaling"] = {backend: {
                 "envs": list(SCALING_ENVS),
@@ -374,6 +420,11 @@ def print_table(report: dict) -> None:
             ("ROS lockstep x real time", "ros_lockstep_real_time_factor", "{:.1f}")]
     for label, key, fmt in rows:
         _row(report, label, lambda r, key=key: r[key], fmt)
+    for backend, part, label in (("direct", "physics", "direct: physics (World.step)"),
+                                 ("direct", "sensors_and_task", "direct: sensors, task env"),
+                                 ("ros", "client", "ROS: client (task env, calls)"),
+                                 ("ros", "sim_node", "ROS: sim node (physics, service)")):
+        _row(report, f"CPU us/env step, {label}", lambda r, b=backend, p=part: r["cpu_us_per_step"][b][p], "{:.0f}")
     for backend in ("ros", "direct"):
         for n in SCALING_ENVS:
             _row(report, f"vector env, {backend}, N = {n}, env steps/s",
