@@ -65,8 +65,9 @@ def main() -> None:
     controllers = ["haa_joint_position_controller", "hfe_joint_position_controller", "kfe_joint_position_controller"]
     answer = sim.step_with(200, controllers, [0.3, -0.2, -0.4])
     step = same_as_published(answer.readings, subscribers, marks)
-    packed_steps = []  # steps of 50 ms until one answers with a contact point (the foot bounces a little)
-    while len(packed_steps) < 40 and not any(step["contact_points"] for step in packed_steps):
+    # Steps of 50 ms until one answers with a contact point (the foot bounces a little).
+    packed_steps: list[dict[str, Any]] = []
+    while len(packed_steps) < 40 and not any(packed["contact_points"] for packed in packed_steps):
         marks = [s.count for s in subscribers.values()]
         packed_steps.append(same_readings_as_published(
             sim.step_with(50, controllers, [0.0, 0.0, 0.0], packed=True).packed, subscribers, marks))

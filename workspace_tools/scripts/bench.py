@@ -91,7 +91,8 @@ def _sim_node_pid() -> int:
     import rosgraph
     import rospy
     uri = rosgraph.Master(rospy.get_name()).lookupNode("/pybullet_sim")
-    return int(xmlrpc.client.ServerProxy(uri).getPid(rospy.get_name())[2])
+    answer: Any = xmlrpc.client.ServerProxy(uri).getPid(rospy.get_name())  # [code, status message, pid]
+    return int(answer[2])
 
 
 def worker_lockstep(robot: str, backend: str, steps: int, running_step: float) -> dict:
