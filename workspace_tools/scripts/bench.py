@@ -78,9 +78,13 @@ def _make_env(robot: str, backend: str, running_step: float):
     return make_env(ROBOTS[robot].task, params=_params(robot, running_step), backend=backend)
 
 
-def _process_cpu_s(pid: int) -> float:
-    """CPU seconds (user + system) a process has used so far."""
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+def _stat_fields(pid: int | str) -> list[str]:
+    """A process's /proc/PID/stat after its name: [0] state, [1] parent PID, [11] user and [12] system CPU ticks."""
+    return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+
+
+def _cpu_s(fields: list[str]) -> float:
+    """CPU seconds (user + system) from a process's _stat_fields."""
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
@@ -119,7 +123,7 @@ def worker_lockstep(robot: str, backend: str, steps: int, running_step: float) -
     env.reset(seed=0)
     physics_s[0] = 0.0
     start, cpu_start = time.perf_counter(), time.process_time()
-    sim_start = _process_cpu_s(sim_pid) if sim_pid else 0.0
+    sim_start = _cpu_s(_stat_fields(sim_pid)) if sim_pid else 0.0
     for _ in range(steps):
         _, _, terminated, truncated, _ = env.step(int(rng.integers(env.action_space.n)))
         if terminated or truncated:
@@ -128,7 +132,7 @@ def worker_lockstep(robot: str, backend: str, steps: int, running_step: float) -
     result = {"steps_per_s": steps / elapsed, "running_step": env.unwrapped.running_step}
     if sim_pid:
         result["cpu_us_per_step"] = {"client": 1e6 * cpu / steps,
-                                     "sim_node": 1e6 * (_process_cpu_s(sim_pid) - sim_start) / steps}
+                                     "sim_node": 1e6 * (_cpu_s(_stat_fields(sim_pid)) - sim_start) / steps}
     else:
         result["cpu_us_per_step"] = {"physics": 1e6 * physics_s[0] / steps,
                                      "sensors_and_task": 1e6 * (cpu - physics_s[0]) / steps}
@@ -143,7 +147,7 @@ def _tree_cpu_s() -> float:
     for entry in Path("/proc").iterdir():
         if entry.name.isdigit():
             try:
-                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+                fields = _stat_fields(entry.name)
             except OSError:  # gone
                 continue
             stats[int(entry.name)] = fields
@@ -152,7 +156,7 @@ def _tree_cpu_s() -> float:
     while todo:
         pid = todo.pop()
         if pid in stats:
-            total += (int(stats[pid][11]) + int(stats[pid][12])) / os.sysconf("SC_CLK_TCK")
+            total += _cpu_s(stats[pid])
         todo.extend(parents.get(pid, []))
     return total
 

@@ -386,13 +386,12 @@ class SimNode:
             for controller, value in zip(request.controllers, request.commands):
                 self._command(controller, value, f"{STEP_SERVICE} (controller {controller})", caller)
             self._step_world(request.steps)
-            answer = (("packed" if request.packed else "messages") if request.return_readings else None)
-            readings = self._publish_all(answer=answer)
-            if readings is None:
+            if not request.return_readings:
+                self._publish_all()
                 return StepResponse(stamp=self._stamp())
             if request.packed:
-                return StepResponse(stamp=self._stamp(), packed=readings)
-            return StepResponse(stamp=self._stamp(), readings=readings)
+                return StepResponse(stamp=self._stamp(), packed=self._publish_all(answer="packed"))
+            return StepResponse(stamp=self._stamp(), readings=self._publish_all(answer="messages"))
 
     def _handle_reset(self, request):
         with self._exclusive():
