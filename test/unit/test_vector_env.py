@@ -2,6 +2,7 @@
 VectorEnv contract with SAME_STEP autoreset, determinism, errors in a worker, and no process left."""
 import json
 import os
+import signal
 
 import numpy as np
 import pytest
@@ -99,6 +100,39 @@ def test_an_exception_in_a_worker_names_it_and_the_others_close_cleanly():
         env.reset(seed=0)
         with pytest.raises(WorkerError, match=r"worker 1 \(direct\) failed: ValueError: action 99 is not in"):
             env.step([0, 99])
+    finally:
+        env.close()
+    assert not any(alive(pid) for pid in pids)
+
+
+def test_a_worker_that_does_not_answer_in_time_is_named_and_the_others_replies_are_read():
+    workers = EnvWorkers(ONE_DISK_WALK, 2, backend="direct", seed=0)
+    pids = [info["pid"] for info in workers.worker_info]
+    try:
+        workers.request_all("reset", [(0, None), (1, None)])
+        os.kill(pids[1], signal.SIGSTOP)
+        try:
+            for i in range(2):
+                workers.send(i, "step", 0)
+            with pytest.raises(WorkerError, match=rf"worker 1 \(direct, pid {pids[1]}\) did not answer a step "
+                                                  r"within 1 s \(is the machine overloaded"):
+                workers.receive_all(timeout=1.0, what="answer a step")
+            assert workers._pending == [False, True]  # worker 0's reply was read, worker 1's is still owed
+        finally:
+            os.kill(pids[1], signal.SIGCONT)
+    finally:
+        workers.close()
+    assert not any(alive(pid) for pid in pids)
+
+
+def test_a_worker_that_dies_is_named_with_its_exit_code():
+    env = make_vector_env(ONE_DISK_WALK, 2, backend="direct", seed=0)
+    pids = [info["pid"] for info in env.workers.worker_info]
+    try:
+        env.reset(seed=0)
+        os.kill(pids[0], signal.SIGKILL)
+        with pytest.raises(WorkerError, match=r"worker 0 \(direct\) died \(exit code -9\) before its answer 'step'"):
+            env.step([0, 0])
     finally:
         env.close()
     assert not any(alive(pid) for pid in pids)

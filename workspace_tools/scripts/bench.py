@@ -17,7 +17,9 @@ Sections (--sections, default all):
 - scaling: robot_rl.vector's gymnasium vector env with N = 1, 2, 4 workers, over ROS (each worker
   with its own master and sim node) and direct; parallel efficiency = steps/s at N / (N x at 1); and
   the CPU time per env step of every process involved, which says whether a loss of efficiency is
-  work added by more workers or cores the machine did not give.
+  work added by more workers; and two one-env direct processes started at once, with no vector env
+  and no ROS, against one alone: what the machine's cores give to independent envs, the ceiling the
+  vector env's speedup is read against.
 - deep: Stable-Baselines3 DQN (robot_rl/config/dqn.yaml) learning for a number of env steps on one
   env over ROS and direct; its env steps per second of wall time, gradient steps included.
 - gazebo: the tutorials' Gazebo-style step.
@@ -41,6 +43,7 @@ import sys
 import tempfile
 import time
 from collections import defaultdict
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -122,14 +125,15 @@ def worker_lockstep(robot: str, backend: str, steps: int, running_step: float) -
     rng = np.random.default_rng(0)
     env.reset(seed=0)
     physics_s[0] = 0.0
-    start, cpu_start = time.perf_counter(), time.process_time()
+    wall_start, start, cpu_start = time.time(), time.perf_counter(), time.process_time()
     sim_start = _cpu_s(_stat_fields(sim_pid)) if sim_pid else 0.0
     for _ in range(steps):
         _, _, terminated, truncated, _ = env.step(int(rng.integers(env.action_space.n)))
         if terminated or truncated:
             env.reset()
     elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu_start
-    result = {"steps_per_s": steps / elapsed, "running_step": env.unwrapped.running_step}
+    result = {"steps_per_s": steps / elapsed, "running_step": env.unwrapped.running_step,
+              "wall_start": wall_start, "wall_end": wall_start + elapsed}
     if sim_pid:
         result["cpu_us_per_step"] = {"client": 1e6 * cpu / steps,
                                      "sim_node": 1e6 * (_cpu_s(_stat_fields(sim_pid)) - sim_start) / steps}
@@ -286,6 +290,20 @@ def _with_sim(log_dir: Path, robot: str, real_time_factor: float, worker_args: l
         master.close()
 
 
+def _independent_direct(log_dir: Path, robot: str, n: int, steps: int, running_step: float) -> float:
+    """Env steps/s of n one-env direct processes started at once, each on its own (no vector env, no ROS):
+    all their steps over the wall time from the first start to the last end. What the machine's cores give
+    to independent envs: the ceiling for a vector env's scaling in the same run."""
+    processes = Processes(log_dir)
+    args = ["lockstep", robot, "direct", steps, running_step]
+    try:
+        with ThreadPoolExecutor(n) as pool:
+            results = list(pool.map(lambda _: _run_worker(processes, args, timeout=600), range(n)))
+    finally:
+        processes.close()
+    return n * steps / (max(r["wall_end"] for r in results) - min(r["wall_start"] for r in results))
+
+
 def _cube_training_wall_time(log_dir: Path, episodes: int) -> float:
     master = RosMaster(log_dir)
     results = log_dir / "results"
@@ -342,6 +360,10 @@ def _rep(tmp: Path, rep: int, robot: str, running_step: float, sections: set[str
                 s[f"{backend}_efficiency_{n}"].append(rates[n] / (n * rates[1]))
             _log(f"rep {rep + 1} {robot}: vector env {backend}: " + ", ".join(
                 f"N={n} {rate:.0f}/s" for n, rate in rates.items()))
+        alone, together = (_independent_direct(Path(f"{tag}-independent-{n}"), robot, n, 2 * steps, running_step)
+                           for n in (1, 2))
+        s["independent_speedup_2"].append(together / alone)
+        _log(f"rep {rep + 1} {robot}: independent direct processes: 1 alone {alone:.0f}/s, 2 at once {together:.0f}/s")
     if "deep" in sections:
         ros = _with_sim(Path(f"{tag}-deep-ros"), robot, 0.0, ["deep", robot, "ros", DEEP_STEPS, running_step])
         direct = _run_worker(Processes(Path(f"{tag}-deep-direct")), ["deep", robot, "direct", DEEP_STEPS,
@@ -390,6 +412,7 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
                 "speedup": {str(n): n * median(s[f"{backend}_efficiency_{n}"]) for n in SCALING_ENVS[1:]},
                 "cpu_ms_per_step": {str(n): median(s[f"{backend}_cpu_{n}"]) for n in SCALING_ENVS},
             } for backend in ("ros", "direct")}
+            r["scaling"]["independent_direct_processes_speedup"] = {"2": median(s["independent_speedup_2"])}
         if "deep" in sections:
             r["dqn"] = {"steps": DEEP_STEPS, "ros_steps_per_s": median(s["deep_ros"]),
                         "direct_steps_per_s": median(s["deep_direct"]), "ratio_ros_to_direct": median(s["deep_ratio"])}
@@ -442,6 +465,8 @@ def print_table(report: dict) -> None:
                  lambda r, backend=backend, n=n: r["scaling"][backend]["speedup"][str(n)], "{:.2f}")
             _row(report, f"vector env, {backend}, N = {n}: parallel efficiency",
                  lambda r, backend=backend, n=n: r["scaling"][backend]["parallel_efficiency"][str(n)], "{:.2f}")
+    _row(report, "2 independent direct processes: speedup over 1",
+         lambda r: r["scaling"]["independent_direct_processes_speedup"]["2"], "{:.2f}")
     _row(report, "DQN learning over ROS, env steps/s", lambda r: r["dqn"]["ros_steps_per_s"], "{:.0f}")
     _row(report, "DQN learning direct, env steps/s", lambda r: r["dqn"]["direct_steps_per_s"], "{:.0f}")
     _row(report, "DQN: ROS / direct", lambda r: r["dqn"]["ratio_ros_to_direct"], "{:.2f}")

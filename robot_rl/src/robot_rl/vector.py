@@ -25,9 +25,11 @@ from __future__ import annotations
 import multiprocessing
 import multiprocessing.connection
 import os
+import select
 import shutil
 import signal
 import tempfile
+import time
 import traceback
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -208,31 +210,57 @@ class EnvWorkers:
 
     def receive(self, i: int, timeout: float | None = None, what: str = "reply") -> Any:
         """Worker i's reply (bounded); WorkerError if it failed, died or did not answer."""
-        conn, timeout = self._conns[i], self.reply_timeout if timeout is None else timeout
+        timeout = self.reply_timeout if timeout is None else timeout
         try:
-            if not conn.poll(timeout):
-                raise WorkerError(f"worker {i} ({self.backend}, pid {self._processes[i].pid}) did not {what} within "
-                                  f"{timeout:.0f} s (is the machine overloaded, or the sim frozen?); "
-                                  f"{self._what_to_check(i)}")
-            status, data = conn.recv()
+            if not self._conns[i].poll(timeout):
+                raise self._late(i, timeout, what)
         except (EOFError, OSError):
-            self._processes[i].join(1.0)
-            raise WorkerError(f"worker {i} ({self.backend}) died (exit code {self._processes[i].exitcode}) before "
-                              f"its {what}; {self._what_to_check(i)}") from None
+            raise self._died(i, what) from None
+        return self._read(i, what)
+
+    def _read(self, i: int, what: str) -> Any:
+        """Worker i's reply, which has arrived."""
+        try:
+            status, data = self._conns[i].recv()
+        except (EOFError, OSError):
+            raise self._died(i, what) from None
         self._pending[i] = False
         if status == "error":
             raise WorkerError(f"worker {i} ({self.backend}) failed: {data}")
         return data
 
+    def _late(self, i: int, timeout: float, what: str) -> WorkerError:
+        return WorkerError(f"worker {i} ({self.backend}, pid {self._processes[i].pid}) did not {what} within "
+                           f"{timeout:.0f} s (is the machine overloaded, or the sim frozen?); {self._what_to_check(i)}")
+
+    def _died(self, i: int, what: str) -> WorkerError:
+        self._processes[i].join(1.0)
+        return WorkerError(f"worker {i} ({self.backend}) died (exit code {self._processes[i].exitcode}) before "
+                           f"its {what}; {self._what_to_check(i)}")
+
     def receive_all(self, timeout: float | None = None, what: str = "reply") -> list[Any]:
-        """Every worker's reply; the first failure is raised after every other reply has been read."""
-        replies, failure = [], None
-        for i in range(self.n):
-            try:
-                replies.append(self.receive(i, timeout, what))
-            except WorkerError as error:
-                failure = failure or error
-                replies.append(None)
+        """Every worker's reply, read in the order they arrive (bounded: `timeout` for all of them); the
+        first failure is raised after every other reply has been read."""
+        timeout = self.reply_timeout if timeout is None else timeout
+        deadline = time.monotonic() + timeout
+        replies: list[Any] = [None] * self.n
+        failure: WorkerError | None = None
+        waiting = {self._conns[i].fileno(): i for i in range(self.n)}
+        poller = select.poll()
+        for fd in waiting:
+            poller.register(fd, select.POLLIN)
+        while waiting:
+            ready = poller.poll(max(0.0, deadline - time.monotonic()) * 1000.0)
+            if not ready:  # the first worker still owed names the wait
+                failure = failure or self._late(min(waiting.values()), timeout, what)
+                break
+            for fd, _ in ready:
+                i = waiting.pop(fd)
+                poller.unregister(fd)
+                try:
+                    replies[i] = self._read(i, what)
+                except WorkerError as error:
+                    failure = failure or error
         if failure is not None:
             raise failure
         return replies
