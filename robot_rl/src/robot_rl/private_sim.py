@@ -51,13 +51,17 @@ def _prepare_child() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
-def stop_process(process: subprocess.Popen[bytes], timeout: float = STOP_TIMEOUT) -> None:
-    """SIGINT (ROS nodes and rosmaster shut down cleanly), then SIGKILL; bounded."""
+def stop_process(process: subprocess.Popen[Any], timeout: float = STOP_TIMEOUT, group: bool = False) -> None:
+    """SIGINT (ROS nodes, roslaunch and rosmaster shut down cleanly), then SIGKILL; bounded. With `group`, to
+    the process group the process leads (started with start_new_session: roslaunch and the nodes it started)."""
     for sig in (signal.SIGINT, signal.SIGKILL):
         if process.poll() is not None:
             return
         try:
-            process.send_signal(sig)
+            if group:
+                os.killpg(process.pid, sig)
+            else:
+                process.send_signal(sig)
         except ProcessLookupError:
             return
         try:

@@ -6,18 +6,13 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
 import time
 from pathlib import Path
 
 import rosgraph
 
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
+from robot_rl.private_sim import free_port, stop_process
 
 
 def processes_using(uri: str) -> list[int]:
@@ -37,18 +32,7 @@ def processes_using(uri: str) -> list[int]:
 
 def stop(process: subprocess.Popen, timeout: float = 10.0) -> None:
     """End a process group we started: SIGINT (roslaunch shuts its nodes down), then SIGKILL."""
-    if process.poll() is not None:
-        return
-    for sig in (signal.SIGINT, signal.SIGKILL):
-        try:
-            os.killpg(process.pid, sig)
-        except ProcessLookupError:
-            return
-        try:
-            process.wait(timeout)
-            return
-        except subprocess.TimeoutExpired:
-            continue
+    stop_process(process, timeout, group=True)
 
 
 class Processes:
