@@ -35,6 +35,11 @@ def subscribed(master, node: str, topic: str) -> bool:
     return node in dict(subscribers).get(topic, [])
 
 
+def advertised(master, service: str) -> bool:
+    _, _, services = master.params.getSystemState()
+    return service in dict(services)
+
+
 @pytest.mark.parametrize("robot, contact_topic, wanted", [
     ("cube", "/clock", {"red": 1500, "dark": 1500}),  # no contact sensor: contact_markers only listens to /clock
     ("hopper", "/lowerleg_contactsensor_state", {"red": 800, "blue": 200, "orange": 150})])
@@ -45,13 +50,16 @@ def test_rviz_config_loads_without_errors_and_shows_the_robot(ros_master, xvfb, 
     with open(log, "w") as out:
         launch = ros_master.start(["roslaunch", "pybullet_sim", f"{robot}_sim.launch", *launch_args(rviz="true")],
                                   stdout=out, stderr=subprocess.STDOUT)
-    # Paused, the sim publishes only when stepped: once rviz and contact_markers listen, 0.15 s of sim
+    # Paused, the sim publishes only when stepped: once rviz and contact_markers listen and the sim
+    # offers its step service (the listeners may register before the sim does), 0.15 s of sim
     # time lands the robot (the monoped on its foot, which then feels the ground), then a step of 1 ms
     # per look publishes it again until rviz shows it (a subscriber connects a little after it registers).
     deadline = time.monotonic() + SHOW_ROBOT_TIMEOUT
-    while not (subscribed(ros_master, "/rviz", "/tf") and subscribed(ros_master, "/contact_markers", contact_topic)):
+    while not (subscribed(ros_master, "/rviz", "/tf") and subscribed(ros_master, "/contact_markers", contact_topic)
+               and advertised(ros_master, "/pybullet_sim/step")):
         assert launch.poll() is None and time.monotonic() < deadline, \
-            f"rviz and contact_markers did not start within {SHOW_ROBOT_TIMEOUT} s:\n{log.read_text()[-3000:]}"
+            f"rviz, contact_markers and the sim's /pybullet_sim/step did not start within {SHOW_ROBOT_TIMEOUT} s:" \
+            f"\n{log.read_text()[-3000:]}"
         time.sleep(0.2)  # bounded poll of the master
     screenshot, steps = tmp_path / f"rviz_{robot}.png", 150
     while True:  # bounded: rviz has no "drawn" signal; a screenshot shows when the robot is there
