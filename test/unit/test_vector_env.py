@@ -120,21 +120,29 @@ def test_a_worker_that_does_not_answer_in_time_is_named_and_the_others_replies_a
             assert workers._pending == [False, True]  # worker 0's reply was read, worker 1's is still owed
         finally:
             os.kill(pids[1], signal.SIGCONT)
+        assert len(workers.receive(1, what="answer a step")) == 6  # the late reply, still in step with the worker
+        assert [len(reply) for reply in workers.request_all("step", [0, 0])] == [6, 6]
     finally:
         workers.close()
     assert not any(alive(pid) for pid in pids)
 
 
 def test_a_worker_that_dies_is_named_with_its_exit_code():
-    env = make_vector_env(ONE_DISK_WALK, 2, backend="direct", seed=0)
-    pids = [info["pid"] for info in env.workers.worker_info]
+    workers = EnvWorkers(ONE_DISK_WALK, 2, backend="direct", seed=0)
+    pids = [info["pid"] for info in workers.worker_info]
+    died = r"worker 0 \(direct\) died \(exit code -9\) before its answer a step"
     try:
-        env.reset(seed=0)
+        workers.request_all("reset", [(0, None), (1, None)])
+        os.kill(pids[0], signal.SIGSTOP)  # it is sent its next command but cannot answer it
+        for i in range(2):
+            workers.send(i, "step", 0)
         os.kill(pids[0], signal.SIGKILL)
-        with pytest.raises(WorkerError, match=r"worker 0 \(direct\) died \(exit code -9\) before its answer 'step'"):
-            env.step([0, 0])
+        with pytest.raises(WorkerError, match=died):  # as a vector step reads the replies
+            workers.receive_all(what="answer a step")
+        with pytest.raises(WorkerError, match=died):  # as the Q-learning trainer reads one
+            workers.receive(0, what="answer a step")
     finally:
-        env.close()
+        workers.close()
     assert not any(alive(pid) for pid in pids)
 
 

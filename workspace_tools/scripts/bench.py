@@ -17,9 +17,10 @@ Sections (--sections, default all):
 - scaling: robot_rl.vector's gymnasium vector env with N = 1, 2, 4 workers, over ROS (each worker
   with its own master and sim node) and direct; parallel efficiency = steps/s at N / (N x at 1); and
   the CPU time per env step of every process involved, which says whether a loss of efficiency is
-  work added by more workers; and two one-env direct processes started at once, with no vector env
-  and no ROS, against one alone: what the machine's cores give to independent envs, the ceiling the
-  vector env's speedup is read against.
+  work added by more workers; tabular Q-learning from N = 1 and 2 envs over ROS
+  (robot_rl.vector_training, whose envs do not wait for each other's steps); and two one-env direct
+  processes started at once, with no vector env and no ROS, against one alone: what the machine's
+  cores give to independent envs, the ceiling the speedups are read against.
 - deep: Stable-Baselines3 DQN (robot_rl/config/dqn.yaml) learning for a number of env steps on one
   env over ROS and direct; its env steps per second of wall time, gradient steps included.
 - gazebo: the tutorials' Gazebo-style step.
@@ -184,6 +185,33 @@ def worker_vector(robot: str, backend: str, n: int, steps: int, running_step: fl
     finally:
         env.close()
     return {"steps_per_s": vector_steps * n / elapsed, "cpu_ms_per_step": 1000.0 * cpu / (vector_steps * n)}
+
+
+def worker_qlearn(robot: str, n: int, steps: int, running_step: float) -> dict:
+    """robot_rl.vector_training's tabular Q-learning from n envs over ROS (as `./ws run envs:=N` trains,
+    without the results files' writes between checkpoints): env steps/s for `steps` env steps."""
+    from robot_rl.results import RunDirectory
+    from robot_rl.vector import make_vector_env
+    from robot_rl.vector_training import VectorQLearningTrainer
+    task = ROBOTS[robot].task
+    params = _params(robot, running_step).with_changes("bench", nepisodes=10**9)
+    env: Any = make_vector_env(task, n, backend="ros", seed=0, params=params)  # the trainer takes it as its env
+    taken, first, last = [0], [0.0], [0.0]
+
+    def on_step(*_: Any) -> None:  # timed from the first transition learnt to the last (no start, no summary)
+        last[0] = time.perf_counter()
+        if not taken[0]:
+            first[0] = last[0]
+        taken[0] += 1
+    try:
+        with tempfile.TemporaryDirectory() as results:
+            run = RunDirectory.create(Path(results), robot, params.to_mapping(), task.metric_names, "bench")
+            VectorQLearningTrainer(env, task, params, run, log=lambda _: None, log_episode=lambda _: None,
+                                   on_step=on_step, should_stop=lambda: taken[0] >= steps,
+                                   checkpoint_every=10**9).train()
+    finally:
+        env.close()
+    return {"steps_per_s": (taken[0] - 1) / (last[0] - first[0])}
 
 
 def worker_deep(robot: str, backend: str, steps: int, running_step: float) -> dict:
@@ -360,6 +388,13 @@ def _rep(tmp: Path, rep: int, robot: str, running_step: float, sections: set[str
                 s[f"{backend}_efficiency_{n}"].append(rates[n] / (n * rates[1]))
             _log(f"rep {rep + 1} {robot}: vector env {backend}: " + ", ".join(
                 f"N={n} {rate:.0f}/s" for n, rate in rates.items()))
+        qlearn = {n: _run_worker(Processes(Path(f"{tag}-qlearn-{n}")), ["qlearn", robot, n, steps * n, running_step],
+                                 timeout=900)["steps_per_s"] for n in (1, 2)}
+        s["qlearn_1"].append(qlearn[1])
+        s["qlearn_2"].append(qlearn[2])
+        s["qlearn_speedup_2"].append(qlearn[2] / qlearn[1])
+        _log(f"rep {rep + 1} {robot}: tabular Q-learning from N envs over ROS: N=1 {qlearn[1]:.0f}/s, "
+             f"N=2 {qlearn[2]:.0f}/s")
         alone, together = (_independent_direct(Path(f"{tag}-independent-{n}"), robot, n, 2 * steps, running_step)
                            for n in (1, 2))
         s["independent_speedup_2"].append(together / alone)
@@ -413,6 +448,8 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
                 "cpu_ms_per_step": {str(n): median(s[f"{backend}_cpu_{n}"]) for n in SCALING_ENVS},
             } for backend in ("ros", "direct")}
             r["scaling"]["independent_direct_processes_speedup"] = {"2": median(s["independent_speedup_2"])}
+            r["scaling"]["qlearn_ros"] = {"steps_per_s": {str(n): median(s[f"qlearn_{n}"]) for n in (1, 2)},
+                                          "speedup": {"2": median(s["qlearn_speedup_2"])}}
         if "deep" in sections:
             r["dqn"] = {"steps": DEEP_STEPS, "ros_steps_per_s": median(s["deep_ros"]),
                         "direct_steps_per_s": median(s["deep_direct"]), "ratio_ros_to_direct": median(s["deep_ratio"])}
@@ -465,6 +502,11 @@ def print_table(report: dict) -> None:
                  lambda r, backend=backend, n=n: r["scaling"][backend]["speedup"][str(n)], "{:.2f}")
             _row(report, f"vector env, {backend}, N = {n}: parallel efficiency",
                  lambda r, backend=backend, n=n: r["scaling"][backend]["parallel_efficiency"][str(n)], "{:.2f}")
+    for n in (1, 2):
+        _row(report, f"tabular Q-learning over ROS, N = {n}, env steps/s",
+             lambda r, n=n: r["scaling"]["qlearn_ros"]["steps_per_s"][str(n)], "{:.0f}")
+    _row(report, "tabular Q-learning over ROS, N = 2: speedup", lambda r: r["scaling"]["qlearn_ros"]["speedup"]["2"],
+         "{:.2f}")
     _row(report, "2 independent direct processes: speedup over 1",
          lambda r: r["scaling"]["independent_direct_processes_speedup"]["2"], "{:.2f}")
     _row(report, "DQN learning over ROS, env steps/s", lambda r: r["dqn"]["ros_steps_per_s"], "{:.0f}")
@@ -504,6 +546,8 @@ def main(argv) -> int:
             result = worker_lockstep(robot, rest[0], int(rest[1]), float(rest[2]))
         elif kind == "vector":
             result = worker_vector(robot, rest[0], int(rest[1]), int(rest[2]), float(rest[3]))
+        elif kind == "qlearn":
+            result = worker_qlearn(robot, int(rest[0]), int(rest[1]), float(rest[2]))
         elif kind == "deep":
             result = worker_deep(robot, rest[0], int(rest[1]), float(rest[2]))
         else:

@@ -170,6 +170,7 @@ class EnvWorkers:
         self.log_dir = Path(tempfile.mkdtemp(prefix="robot_rl-workers-")) if log_dir is None else Path(log_dir)
         self._pending = [False] * n  # whether worker i owes a reply
         self._conns: list[multiprocessing.connection.Connection] = []
+        self._pollers: list[select.poll] = []  # one per worker's pipe: receive() waits on it (bounded)
         self._processes: list[multiprocessing.process.BaseProcess] = []
         self.closed = False
         context = multiprocessing.get_context("spawn")
@@ -183,6 +184,8 @@ class EnvWorkers:
                 process.start()
                 child.close()
                 self._conns.append(parent)
+                self._pollers.append(select.poll())
+                self._pollers[i].register(parent.fileno(), select.POLLIN)
                 self._processes.append(process)
                 self._pending[i] = True
             ready = self.receive_all(start_timeout, "start")
@@ -211,11 +214,8 @@ class EnvWorkers:
     def receive(self, i: int, timeout: float | None = None, what: str = "reply") -> Any:
         """Worker i's reply (bounded); WorkerError if it failed, died or did not answer."""
         timeout = self.reply_timeout if timeout is None else timeout
-        try:
-            if not self._conns[i].poll(timeout):
-                raise self._late(i, timeout, what)
-        except (EOFError, OSError):
-            raise self._died(i, what) from None
+        if not self._pollers[i].poll(timeout * 1000.0):  # readable, or closed (then _read names the death)
+            raise self._late(i, timeout, what)
         return self._read(i, what)
 
     def _read(self, i: int, what: str) -> Any:
@@ -239,8 +239,9 @@ class EnvWorkers:
                            f"its {what}; {self._what_to_check(i)}")
 
     def receive_all(self, timeout: float | None = None, what: str = "reply") -> list[Any]:
-        """Every worker's reply, read in the order they arrive (bounded: `timeout` for all of them); the
-        first failure is raised after every other reply has been read."""
+        """Every worker's reply, read in the order they arrive, within `timeout` for all of them; the first
+        failure is raised after every other reply has been read (a reply still owed at the deadline stays
+        owed: receive() or close() reads it)."""
         timeout = self.reply_timeout if timeout is None else timeout
         deadline = time.monotonic() + timeout
         replies: list[Any] = [None] * self.n

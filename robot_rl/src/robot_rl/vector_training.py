@@ -1,10 +1,13 @@
 """Tabular Q-learning from N envs into one Q-table: the vector path beside QLearningTrainer's single env.
 
-The N envs (robot_rl.vector.RobotVectorEnv, autoreset SAME_STEP) step together; every vector step
-chooses each env's action from the one table (in env order, from the one seeded RNG) and learns each
-transition in env order, so a run repeats. Each episode that starts decays epsilon as the single-env
-loop does before each episode, so epsilon follows the same schedule per episode; training ends when
-nepisodes episodes have ended (the episodes still under way then are dropped). Episodes are logged in
+The N envs (the workers of a robot_rl.vector.RobotVectorEnv, autoreset SAME_STEP) step side by side
+without a barrier: the trainer takes their replies in env order, round and round, learns each
+transition, and sends that env its next action at once (chosen from the one table with the one seeded
+RNG), so a worker waits for the trainer's turn with its own reply, never for the other envs' steps.
+The order of every choice and update is fixed, so a run repeats. Each episode that starts decays
+epsilon as the single-env loop does before each episode, so epsilon follows the same schedule per
+episode; training ends when nepisodes episodes have ended (the episodes still under way then are
+dropped). Episodes are logged in
 the order they end, with the same files (episodes.csv, qtable.json, learning_curve.png, summary.json)
 and one "EP:" line per episode that names its env and each env's episode count. A checkpoint holds
 the Q-table with the steps of the episodes under way at that moment: resume continues from it (those
@@ -61,52 +64,60 @@ class VectorQLearningTrainer(QLearningTrainer):
                 active[i], started = True, started + 1
         returns, steps, per_env = [0.0] * n, [0] * n, [0] * n
         highest = [-math.inf] * n
-        while any(active) and not self.should_stop():
-            actions = [qlearn.chooseAction(keys[i]) if active[i] else 0 for i in range(n)]
-            observations, rewards, terminations, truncations, infos = env.step(actions)
+        actions, in_flight = [0] * n, [False] * n  # env i's last action; whether its step is under way
+
+        def send(i: int) -> None:
+            actions[i] = qlearn.chooseAction(keys[i])
+            env.workers.send(i, "step", actions[i])
+            in_flight[i] = True
+        for i in range(n):
+            if active[i]:
+                send(i)
+        while any(in_flight):
             for i in range(n):
-                if not active[i]:
+                if not in_flight[i]:
                     continue
-                reward, done = float(rewards[i]), bool(terminations[i] or truncations[i])
-                last = infos["final_obs"][i] if done else observations[i]
-                next_key = self.state_key.key(last)
-                qlearn.learn(keys[i], actions[i], reward, next_key, terminal=bool(terminations[i]))
+                observation, reward, terminated, truncated, _, final = env.workers.receive(i, what="answer a step")
+                in_flight[i] = False
+                done = terminated or truncated
+                next_key = self.state_key.key(final[0] if done else observation)
+                qlearn.learn(keys[i], actions[i], reward, next_key, terminal=terminated)
                 returns[i] += reward
                 steps[i] += 1
                 highest[i] = max(highest[i], returns[i])
                 self.on_step(reward, returns[i])
-                keys[i] = self.state_key.key(observations[i])  # after a reset: the next episode's first
-                if not done:
-                    continue
-                per_env[i] += 1
-                info = {key: value[i] for key, value in infos["final_info"].items() if not key.startswith("_")}
-                episode = Episode(steps=steps[i], return_=returns[i], terminated=bool(terminations[i]),
-                                  duration=steps[i] * self.running_step, info=info)
-                metrics = self.task.metrics(episode)
-                headline = [*headline[-PROGRESS_WINDOW + 1:], metrics[self.task.headline_metric]]
-                state.highest_reward = max(state.highest_reward, highest[i])
-                if episode.terminated:
-                    state.last_time_steps.append(episode.steps)
-                state.episode += 1
-                state.env_steps += episode.steps
-                state.sim_time += episode.duration
-                state.wall_time = time.monotonic() - wall_start
-                self.run.append_episode(EpisodeRecord(episode=state.episode, steps=episode.steps,
-                                                      return_=episode.return_, epsilon=qlearn.epsilon,
-                                                      sim_time=state.sim_time, wall_time=state.wall_time,
-                                                      metrics=metrics))
-                self.on_episode(episode.return_)
-                self.log_episode(f"EP: {state.episode} - [alpha: {round(qlearn.alpha, 2)} - gamma: "
-                                 f"{round(qlearn.gamma, 2)} - epsilon: {round(qlearn.epsilon, 2)}] - Reward: "
-                                 f"{episode.return_:.1f}     Time: {format_duration(state.wall_time)} - env "
-                                 f"{i + 1}/{n} (episodes per env: {', '.join(map(str, per_env))})")
-                if state.episode % self.checkpoint_every == 0:
-                    self.checkpoint()
-                returns[i], steps[i], highest[i] = 0.0, 0, -math.inf
-                active[i] = started < params.nepisodes
-                if active[i]:
-                    self._decay_epsilon()
-                    started += 1
+                keys[i] = self.state_key.key(observation)  # after a reset: the next episode's first
+                if done:
+                    per_env[i] += 1
+                    episode = Episode(steps=steps[i], return_=returns[i], terminated=terminated,
+                                      duration=steps[i] * self.running_step, info=final[1])
+                    metrics = self.task.metrics(episode)
+                    headline = [*headline[-PROGRESS_WINDOW + 1:], metrics[self.task.headline_metric]]
+                    state.highest_reward = max(state.highest_reward, highest[i])
+                    if episode.terminated:
+                        state.last_time_steps.append(episode.steps)
+                    state.episode += 1
+                    state.env_steps += episode.steps
+                    state.sim_time += episode.duration
+                    state.wall_time = time.monotonic() - wall_start
+                    self.run.append_episode(EpisodeRecord(episode=state.episode, steps=episode.steps,
+                                                          return_=episode.return_, epsilon=qlearn.epsilon,
+                                                          sim_time=state.sim_time, wall_time=state.wall_time,
+                                                          metrics=metrics))
+                    self.on_episode(episode.return_)
+                    self.log_episode(f"EP: {state.episode} - [alpha: {round(qlearn.alpha, 2)} - gamma: "
+                                     f"{round(qlearn.gamma, 2)} - epsilon: {round(qlearn.epsilon, 2)}] - Reward: "
+                                     f"{episode.return_:.1f}     Time: {format_duration(state.wall_time)} - env "
+                                     f"{i + 1}/{n} (episodes per env: {', '.join(map(str, per_env))})")
+                    if state.episode % self.checkpoint_every == 0:
+                        self.checkpoint()
+                    returns[i], steps[i], highest[i] = 0.0, 0, -math.inf
+                    active[i] = started < params.nepisodes
+                    if active[i]:
+                        self._decay_epsilon()
+                        started += 1
+                if active[i] and not self.should_stop():
+                    send(i)
             now = time.monotonic()
             if now >= next_progress:
                 next_progress = now + self.progress_every_s
