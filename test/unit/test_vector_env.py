@@ -105,15 +105,20 @@ def test_an_exception_in_a_worker_names_it_and_the_others_close_cleanly():
     assert not any(alive(pid) for pid in pids)
 
 
+def step_with_one_stopped(workers: EnvWorkers, stopped: int) -> None:
+    """Reset both workers, stop worker `stopped` (SIGSTOP), then send each a step: one cannot answer."""
+    workers.request_all("reset", [(0, None), (1, None)])
+    os.kill(workers.worker_info[stopped]["pid"], signal.SIGSTOP)
+    for i in range(2):
+        workers.send(i, "step", 0)
+
+
 def test_a_worker_that_does_not_answer_in_time_is_named_and_the_others_replies_are_read():
     workers = EnvWorkers(ONE_DISK_WALK, 2, backend="direct", seed=0)
     pids = [info["pid"] for info in workers.worker_info]
     try:
-        workers.request_all("reset", [(0, None), (1, None)])
-        os.kill(pids[1], signal.SIGSTOP)
         try:
-            for i in range(2):
-                workers.send(i, "step", 0)
+            step_with_one_stopped(workers, 1)
             with pytest.raises(WorkerError, match=rf"worker 1 \(direct, pid {pids[1]}\) did not answer a step "
                                                   r"within 1 s \(is the machine overloaded"):
                 workers.receive_all(timeout=1.0, what="answer a step")
@@ -132,10 +137,7 @@ def test_a_worker_that_dies_is_named_with_its_exit_code():
     pids = [info["pid"] for info in workers.worker_info]
     died = r"worker 0 \(direct\) died \(exit code -9\) before its answer a step"
     try:
-        workers.request_all("reset", [(0, None), (1, None)])
-        os.kill(pids[0], signal.SIGSTOP)  # it is sent its next command but cannot answer it
-        for i in range(2):
-            workers.send(i, "step", 0)
+        step_with_one_stopped(workers, 0)
         os.kill(pids[0], signal.SIGKILL)
         with pytest.raises(WorkerError, match=died):  # as a vector step reads the replies
             workers.receive_all(what="answer a step")
