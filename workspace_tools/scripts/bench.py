@@ -188,8 +188,9 @@ def worker_vector(robot: str, backend: str, n: int, steps: int, running_step: fl
 
 
 def worker_qlearn(robot: str, n: int, steps: int, running_step: float) -> dict:
-    """robot_rl.vector_training's tabular Q-learning from n envs over ROS (as `./ws run envs:=N` trains,
-    without the results files' writes between checkpoints): env steps/s for `steps` env steps."""
+    """robot_rl.vector_training's tabular Q-learning from n envs over ROS, as `./ws run envs:=N` trains
+    (episodes.csv written) but with no log lines and no checkpoint until the end, which is not timed:
+    env steps/s for `steps` env steps."""
     from robot_rl.results import RunDirectory
     from robot_rl.vector import make_vector_env
     from robot_rl.vector_training import VectorQLearningTrainer
