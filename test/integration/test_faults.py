@@ -445,6 +445,47 @@ def test_ctrl_c_stops_with_a_checkpoint_and_an_incomplete_summary_then_resumes(m
     assert json.loads((results / "moving_cube" / "latest" / "summary.json").read_text())["completed"] is True
 
 
+def interrupt_while_logging(master: RosMaster, logging: Path) -> int | None:
+    """Start logging_node.py, SIGINT it once it logs; its exit code, or None if it did not end within 20 s."""
+    node = master.start([sys.executable, str(Path(__file__).with_name("logging_node.py")), str(logging)],
+                        stdout=subprocess.DEVNULL)
+    wait_for(lambda: logging.exists() or node.poll() is not None, 30, "logging_node.py's first log line")
+    assert node.poll() is None, f"logging_node.py ended (exit {node.returncode}) before it logged"
+    node.send_signal(signal.SIGINT)
+    try:
+        return node.wait(20)
+    except subprocess.TimeoutExpired:
+        node.kill()
+        node.wait()
+        return None
+
+
+def test_ctrl_c_in_the_middle_of_a_log_line_ends_the_node(master, tmp_path):
+    """The training node's stop on SIGINT, landing while a log line holds rospy's locks: when the handler ran
+    rospy's shutdown itself, 14 of 20 such nodes waited on their own lock until killed."""
+    codes = [interrupt_while_logging(master, tmp_path / f"logging{attempt}") for attempt in range(5)]
+    assert codes == [INTERRUPTED] * 5, f"exit codes of 5 nodes (None: still running 20 s after SIGINT): {codes}"
+
+
+def sim_time(master: RosMaster) -> float:
+    """The sim's time from /gazebo/get_world_properties (0 while the service is not up yet)."""
+    result = master.run(["rosservice", "call", "/gazebo/get_world_properties"], timeout=30)
+    return float(yaml.safe_load(result.stdout)["sim_time"]) if result.returncode == 0 else 0.0
+
+
+def test_ctrl_c_on_a_sim_running_as_fast_as_it_can_ends_it_at_once(master, tmp_path):
+    """SIGINT while the sim node steps flat out, holding its lock nearly all the time: with rospy's own handler
+    (its shutdown hook takes that lock) roslaunch escalated to SIGTERM and SIGKILL, 17 s, 6 times in 6."""
+    log = tmp_path / "sim.log"
+    with open(log, "w") as out:
+        launch = master.start(["roslaunch", "pybullet_sim", "cube_sim.launch", "paused:=false", "real_time_factor:=0",
+                               "robot_state_publisher:=false"], stdout=out, stderr=subprocess.STDOUT)
+    wait_for(lambda: sim_time(master) > 0.5, 60, "the running cube sim's time (/gazebo/get_world_properties) > 0.5 s")
+    launch.send_signal(signal.SIGINT)
+    assert launch.wait(60) == 0, log.read_text()[-3000:]
+    assert "escalating" not in log.read_text(), log.read_text()[-3000:]
+
+
 def test_the_master_killed_during_training_does_not_stop_it(master, tmp_path):
     """Nodes talk peer to peer once connected: the run finishes and writes everything."""
     log = tmp_path / "run.log"

@@ -72,6 +72,7 @@ from .config import ConfigError, SensorConfig, parse_robot_config
 from .controller_manager import ControllerManager
 from .physics_properties import OdeConfig, PhysicsProperties
 from .readings import JointStateReading, pack_readings
+from .shutdown import shutdown_on_signals
 from .world import UrdfError, World, absolute_state, relative_state
 
 _SENSOR_MESSAGES = {"p3d": (Odometry, messages.odometry_msg), "imu": (Imu, messages.imu_msg),
@@ -571,7 +572,8 @@ class SimNode:
 
 
 def main(argv: list[str] | None = None) -> int:
-    rospy.init_node("pybullet_sim", argv=argv)
+    rospy.init_node("pybullet_sim", argv=argv, disable_signals=True)
+    shutdown_on_signals()  # the main loop holds the lock that the shutdown hook _wake_main_loop takes
     try:
         node = SimNode()
     except (ConfigError, UrdfError) as error:

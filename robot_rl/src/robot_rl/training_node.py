@@ -15,14 +15,15 @@ robot_rl/config/<agent>.yaml), ~max_steps (a deep agent's env step budget; 0: ne
 ~envs (1: the env over this master's sim; N > 1: N workers, each with a master and a sim of its own,
 see robot_rl.vector; the launch's own sim then idles).
 
-SIGINT or SIGTERM (Ctrl-C, roslaunch shutting down) stops the run cleanly: the episode under way is
-abandoned, a checkpoint and summary.json (marked incomplete) are written, and the node exits 130.
+SIGINT or SIGTERM (Ctrl-C, roslaunch shutting down) stops the run cleanly (pybullet_sim.shutdown: a rospy
+shutdown, which ends every wait on the sim at once, and a request to stop, never an exception at whatever
+line is running): the episode under way is abandoned, a checkpoint and summary.json (marked incomplete)
+are written, and the node exits 130.
 Exit codes: 0 trained, 1 failed (one FATAL line says why), 130 interrupted.
 """
 from __future__ import annotations
 
 import os
-import signal
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -33,6 +34,7 @@ import rospy
 from std_msgs.msg import Float64
 
 from pybullet_sim.client import SimConnectionError
+from pybullet_sim.shutdown import shutdown_on_signals
 
 from .evaluation import TrainedRun, VideoRequest, evaluate
 from .params import ParamError, TaskParams, load_yaml_file
@@ -65,19 +67,6 @@ def _read_params(task: TaskSpec[Any]) -> TaskParams:
     params = task.params_type.from_mapping(rospy.get_param(namespace, {}), f"{config_file} ({namespace.rstrip('/')}/)")
     overrides = {key: rospy.get_param(f"~{key}") for key in ("nepisodes", "seed") if rospy.has_param(f"~{key}")}
     return params.with_changes(rospy.get_name(), **overrides) if overrides else params
-
-
-def _stop_on_signals() -> list[int]:
-    """Turn SIGINT and SIGTERM into a request to stop (and a rospy shutdown, which ends every wait on the
-    sim at once) instead of an exception at whatever line is running. Returns the signals received."""
-    received: list[int] = []
-
-    def handler(signum: int, _frame: Any) -> None:
-        received.append(signum)
-        rospy.signal_shutdown(signal.Signals(signum).name)
-    signal.signal(signal.SIGINT, handler)
-    signal.signal(signal.SIGTERM, handler)
-    return received
 
 
 def _close_quietly(env: Any) -> None:
@@ -136,7 +125,7 @@ def _make_env(task: TaskSpec[Any], params: TaskParams, agent: str, envs: int, ti
 
 def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     rospy.init_node(node_name, anonymous=True, log_level=rospy.INFO, disable_signals=True)
-    signals = _stop_on_signals()
+    signals = shutdown_on_signals()  # turns Ctrl-C into a stop request, see should_stop
     try:
         task = find_task(list(tasks), rospy.get_param("~task", tasks[0].name))
         params = _read_params(task)
