@@ -81,7 +81,10 @@ class CommandPublisher:
 
     def publish(self, value: float) -> None:
         with CommandPublisher._sent_lock:
-            self._publisher.publish(Float64(value))
+            try:
+                self._publisher.publish(Float64(value))
+            except rospy.ROSException as error:  # e.g. the node is shutting down: the topic is closed
+                raise SimConnectionError(f"cannot publish on {self.topic}: {error}") from None
             CommandPublisher._sent[self.topic] = CommandPublisher._sent.get(self.topic, 0) + 1
 
     def unregister(self) -> None:

@@ -72,7 +72,7 @@ from .config import ConfigError, SensorConfig, parse_robot_config
 from .controller_manager import ControllerManager
 from .physics_properties import OdeConfig, PhysicsProperties
 from .readings import JointStateReading, pack_readings
-from .shutdown import shutdown_on_signals
+from .shutdown import shutdown_on_signals, shutting_down
 from .world import UrdfError, World, absolute_state, relative_state
 
 _SENSOR_MESSAGES = {"p3d": (Odometry, messages.odometry_msg), "imu": (Imu, messages.imu_msg),
@@ -81,6 +81,7 @@ READINGS_FIELDS = {"p3d": "odometry", "imu": "imu", "contact": "contacts"}  # py
 WORLD_FRAMES = ("", "world", "map", "/map")  # the names gazebo_ros takes for the world frame
 STEP_BATCH = 10  # physics steps between two looks at the clock during a lockstep call
 STEP_SLICE = 0.02  # s of wall time a lockstep call holds the World before it lets other services in
+SHUTTING_DOWN = "the sim node is shutting down"
 
 
 def _param(params: dict, key: str, kind, default, minimum=None):
@@ -202,12 +203,23 @@ class SimNode:
 
     @contextmanager
     def _exclusive(self):
-        """Hold the World lock from a callback thread, asking the free-running loop to step aside."""
+        """Hold the World lock from a callback thread, asking the free-running loop to step aside. Once the
+        node shuts down (its topics closing, then the World), a ServiceException says so: rospy answers the
+        caller with it and logs it at debug level, where any other error would be logged with a traceback."""
         with self._waiters_lock:
             self._waiters += 1
         try:
             with self._lock:
-                yield
+                if shutting_down():
+                    raise rospy.ServiceException(SHUTTING_DOWN)
+                try:
+                    yield
+                except rospy.ServiceException:
+                    raise
+                except rospy.ROSException as error:  # publish() to a topic the shutdown closed
+                    if not shutting_down():
+                        raise
+                    raise rospy.ServiceException(f"{SHUTTING_DOWN} ({error})") from None
         finally:
             with self._waiters_lock:
                 self._waiters -= 1
@@ -303,9 +315,9 @@ class SimNode:
                     time.sleep(0.0005)  # Python locks are not fair: give the waiting callbacks the lock
                 finally:
                     self._lock.acquire()
-                if rospy.is_shutdown():
-                    raise rospy.ServiceException(f"{STEP_SERVICE} interrupted after {done} of {steps} steps: the "
-                                                 f"sim node is shutting down")
+                if shutting_down():
+                    raise rospy.ServiceException(f"{STEP_SERVICE} interrupted after {done} of {steps} steps: "
+                                                 f"{SHUTTING_DOWN}")
                 slice_end = time.monotonic() + STEP_SLICE
 
     def _command(self, controller: str, value: float, where: str, caller: str) -> None:
@@ -321,11 +333,14 @@ class SimNode:
     # -- callbacks ------------------------------------------------------------------------------
     def _on_command(self, msg: Float64, topic: str):
         caller = msg._connection_header.get("callerid", "") if hasattr(msg, "_connection_header") else ""
-        with self._exclusive():
-            self._command(self._command_topics[topic], msg.data, topic, caller)
-            key = (topic, caller)
-            self._received[key] = self._received.get(key, 0) + 1
-            self._commands_arrived.notify_all()
+        try:
+            with self._exclusive():
+                self._command(self._command_topics[topic], msg.data, topic, caller)
+                key = (topic, caller)
+                self._received[key] = self._received.get(key, 0) + 1
+                self._commands_arrived.notify_all()
+        except rospy.ServiceException:  # shutting down: no step will use the command
+            pass
 
     def _handle_pause(self, _request):
         with self._exclusive():
@@ -543,7 +558,7 @@ class SimNode:
     # -- main loop ------------------------------------------------------------------------------
     def spin(self):
         """Advance physics while running, paced to real_time_factor; idle while paused."""
-        while not rospy.is_shutdown():
+        while not shutting_down():
             if self._waiters:
                 time.sleep(0.0002)
                 continue
@@ -556,7 +571,12 @@ class SimNode:
                     self._pace_origin = (time.monotonic(), self.world.time)
                 origin, real_time_factor = self._pace_origin, self.real_time_factor
                 self.world.step(1)
-                self._publish_due()
+                try:
+                    self._publish_due()
+                except rospy.ROSException:  # publish() to a topic the shutdown closed
+                    if shutting_down():
+                        break
+                    raise
                 sim_elapsed = self.world.time - origin[1]
             if real_time_factor > 0.0:
                 lag = origin[0] + sim_elapsed / real_time_factor - time.monotonic()

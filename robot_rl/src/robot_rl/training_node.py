@@ -34,7 +34,7 @@ import rospy
 from std_msgs.msg import Float64
 
 from pybullet_sim.client import SimConnectionError
-from pybullet_sim.shutdown import shutdown_on_signals
+from pybullet_sim.shutdown import shutdown_on_signals, shutting_down
 
 from .evaluation import TrainedRun, VideoRequest, evaluate
 from .params import ParamError, TaskParams, load_yaml_file
@@ -140,7 +140,7 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     try:
         env = _make_env(task, params, agent, envs, timeout)
     except (SimConnectionError, WorkerError) as error:
-        if signals or rospy.is_shutdown():  # e.g. the sim failed to start and roslaunch is ending the launch
+        if signals or shutting_down():  # e.g. the sim failed to start and roslaunch is ending the launch
             rospy.logwarn("stopped before training started: %s", error)
             return INTERRUPTED
         return _fail(str(error))
@@ -154,14 +154,21 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
         reward_pub = rospy.Publisher(task.reward_topic, Float64, queue_size=10)
         episode_reward_pub = rospy.Publisher(task.episode_reward_topic, Float64, queue_size=10)
 
+        def should_stop() -> bool:
+            return bool(signals) or shutting_down()
+
+        def publish(publisher: rospy.Publisher, value: float) -> None:
+            try:
+                publisher.publish(Float64(value))
+            except rospy.ROSException:  # publish() to a topic the shutdown closed: the run stops at the next step
+                if not should_stop():
+                    raise
+
         def on_step(reward: float, cumulated: float) -> None:
-            reward_pub.publish(Float64(cumulated if task.publish_cumulated_reward else reward))
+            publish(reward_pub, cumulated if task.publish_cumulated_reward else reward)
 
         def on_episode(cumulated: float) -> None:
-            episode_reward_pub.publish(Float64(cumulated))
-
-        def should_stop() -> bool:
-            return bool(signals) or rospy.is_shutdown()
+            publish(episode_reward_pub, cumulated)
         trainer: Any
         if agent != "qlearn":
             from .deep import DeepTrainer
@@ -179,12 +186,12 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     except (FileNotFoundError, ValueError) as error:
         return _fail(str(error))
     except WorkerError as error:
-        if signals or rospy.is_shutdown():
+        if signals or shutting_down():
             return _interrupted(trainer.state.episode, run)
         return _fail(f"training stopped: {error}. Episodes up to episode {trainer.state.episode} are saved in "
                      f"{run.path}; continue with resume:=true")
     except SimConnectionError as error:
-        if signals or rospy.is_shutdown():
+        if signals or shutting_down():
             return _interrupted(trainer.state.episode, run)
         return _fail(f"training stopped: {error}. Episodes up to episode {trainer.state.episode} are saved in "
                      f"{run.path}; continue with resume:=true")
