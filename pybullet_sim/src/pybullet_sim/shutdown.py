@@ -34,6 +34,6 @@ def shutdown_on_signals() -> list[int]:
 
 
 def shutting_down() -> bool:
-    """True from the start of rospy's shutdown on: its pre-shutdown hooks close every topic (publish() raises
-    "publish() to a closed topic") before rospy.is_shutdown() turns true."""
-    return rospy.core.is_shutdown_requested() or rospy.is_shutdown()
+    """True from the start of rospy's shutdown on (and ever after): its pre-shutdown hooks close every topic
+    (publish() raises "publish() to a closed topic") before rospy.is_shutdown() turns true."""
+    return rospy.core.is_shutdown_requested()

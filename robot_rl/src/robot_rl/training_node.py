@@ -125,7 +125,10 @@ def _make_env(task: TaskSpec[Any], params: TaskParams, agent: str, envs: int, ti
 
 def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     rospy.init_node(node_name, anonymous=True, log_level=rospy.INFO, disable_signals=True)
-    signals = shutdown_on_signals()  # turns Ctrl-C into a stop request, see should_stop
+    signals = shutdown_on_signals()  # turns Ctrl-C into a stop request
+
+    def should_stop() -> bool:
+        return bool(signals) or shutting_down()
     try:
         task = find_task(list(tasks), rospy.get_param("~task", tasks[0].name))
         params = _read_params(task)
@@ -140,7 +143,7 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     try:
         env = _make_env(task, params, agent, envs, timeout)
     except (SimConnectionError, WorkerError) as error:
-        if signals or shutting_down():  # e.g. the sim failed to start and roslaunch is ending the launch
+        if should_stop():  # e.g. the sim failed to start and roslaunch is ending the launch
             rospy.logwarn("stopped before training started: %s", error)
             return INTERRUPTED
         return _fail(str(error))
@@ -153,9 +156,6 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
         rospy.loginfo("Results go to %s", run.path)
         reward_pub = rospy.Publisher(task.reward_topic, Float64, queue_size=10)
         episode_reward_pub = rospy.Publisher(task.episode_reward_topic, Float64, queue_size=10)
-
-        def should_stop() -> bool:
-            return bool(signals) or shutting_down()
 
         def publish(publisher: rospy.Publisher, value: float) -> None:
             try:
@@ -185,13 +185,8 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
         summary = trainer.train()
     except (FileNotFoundError, ValueError) as error:
         return _fail(str(error))
-    except WorkerError as error:
-        if signals or shutting_down():
-            return _interrupted(trainer.state.episode, run)
-        return _fail(f"training stopped: {error}. Episodes up to episode {trainer.state.episode} are saved in "
-                     f"{run.path}; continue with resume:=true")
-    except SimConnectionError as error:
-        if signals or shutting_down():
+    except (WorkerError, SimConnectionError) as error:
+        if should_stop():
             return _interrupted(trainer.state.episode, run)
         return _fail(f"training stopped: {error}. Episodes up to episode {trainer.state.episode} are saved in "
                      f"{run.path}; continue with resume:=true")
