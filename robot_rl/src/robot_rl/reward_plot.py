@@ -22,6 +22,8 @@ from typing import Any
 import rospy
 from std_msgs.msg import Float64
 
+from pybullet_sim.shutdown import shutdown_on_signals
+
 from .atomic import write_bytes_atomic
 from .results import MOVING_AVERAGE, moving_average
 
@@ -83,7 +85,8 @@ def main(argv: Sequence[str]) -> int:
     except ImportError as error:  # a window needs Debian's python3-tk
         parser.exit(1, f"plot_rewards.py: no window without python3-tk ({error}); run ./ws plot, or use --output\n")
     import matplotlib.pyplot as plt
-    rospy.init_node("plot_rewards", anonymous=True)  # Ctrl-C shuts rospy down: both loops below end
+    rospy.init_node("plot_rewards", anonymous=True, disable_signals=True)
+    shutdown_on_signals()  # Ctrl-C shuts rospy down (in a thread, never in the handler): both loops below end
     figure = plt.figure(figsize=(8, 6))
     plot = RewardPlot(args.namespace, args.steps, figure)
     if args.output is None:
