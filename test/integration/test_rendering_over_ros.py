@@ -1,6 +1,8 @@
 """Frames over ROS: the env's rgb_array frames come from the sim node's ~render service and equal the
 direct backend's, before and after the robot moves; the contact_markers node draws the monoped's foot force."""
 import json
+import signal
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -22,7 +24,10 @@ def test_frames_over_ros_equal_the_direct_ones_and_change_when_the_robot_moves(r
         while not ros_master.params.hasParam("/pybullet_sim/robot_namespace"):
             assert time.monotonic() < deadline, "roslaunch did not set /pybullet_sim's params within 30 s"
             time.sleep(0.05)  # bounded poll: the master has no notification for params
-        ros_master.start(["rosrun", "pybullet_sim", "contact_markers.py"])
+        markers_log = ros_master.env["ROS_LOG_DIR"] + "/contact_markers.out"
+        with open(markers_log, "w") as out:
+            markers_node = ros_master.start(["rosrun", "pybullet_sim", "contact_markers.py"], stdout=out,
+                                            stderr=subprocess.STDOUT)
     result = ros_master.run([sys.executable, str(SCRIPT), env_id, *(["--markers"] if markers else [])], timeout=180)
     assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-3000:]
     report = json.loads(result.stdout.strip().splitlines()[-1])
@@ -35,3 +40,6 @@ def test_frames_over_ros_equal_the_direct_ones_and_change_when_the_robot_moves(r
         arrows = [m for m in report["markers"] if m["action"] == 0]  # Marker.ADD
         assert arrows, f"no force arrow while the foot stood on the ground: {report['markers'][:5]}"
         assert all(m["frame"] == "lowerleg_contactsensor_link" and 0.0 < m["length"] <= 1.0 for m in arrows), arrows
+        markers_node.send_signal(signal.SIGINT)  # Ctrl-C: rospy shuts down in a thread, spin() ends
+        assert markers_node.wait(timeout=10) == 0, Path(markers_log).read_text()[-3000:]
+        assert "Traceback" not in Path(markers_log).read_text()

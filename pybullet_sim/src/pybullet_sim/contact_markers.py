@@ -24,6 +24,7 @@ from visualization_msgs.msg import Marker
 from gazebo_msgs.msg import ContactsState
 
 from .config import ConfigError, SensorConfig, parse_robot_config
+from .shutdown import shutdown_on_signals, shutting_down
 
 TOPIC = "/pybullet_sim/contact_markers"
 SIM_NODE = "/pybullet_sim"
@@ -74,11 +75,16 @@ class ContactMarkers:
         now = time.monotonic()
         if now - self.last_sent.get(marker_id, -math.inf) >= self.period:
             self.last_sent[marker_id] = now
-            self.publisher.publish(force_marker(msg, sensor, marker_id, self.meters_per_newton, self.max_length))
+            try:
+                self.publisher.publish(force_marker(msg, sensor, marker_id, self.meters_per_newton, self.max_length))
+            except rospy.ROSException:  # publish() to the topic the shutdown closed while this callback ran
+                if not shutting_down():
+                    raise
 
 
 def main() -> int:
-    rospy.init_node("contact_markers")
+    rospy.init_node("contact_markers", disable_signals=True)
+    shutdown_on_signals()  # rospy.spin() below ends once the shutdown thread has run
     try:
         ContactMarkers()
     except ConfigError as error:
