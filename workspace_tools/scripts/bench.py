@@ -6,7 +6,9 @@ over ROS against direct. Prints a table and writes bench_results.json.
 Every figure is the median of --reps repetitions, each in fresh processes (a new master, a new sim
 node, a new client); within a repetition every configuration runs once, so the ROS and direct runs
 are interleaved and their ratio holds on a noisy machine (ratios are medians of each repetition's
-ratio). Actions are random (seeded); episode resets are part of the measured time, as in training.
+ratio; with more than one repetition the table also gives each ratio's lowest and highest repetition,
+and the JSON every repetition's figure). Actions are random (seeded); episode resets are part of the
+measured time, as in training.
 Each robot's control period (running_step) is read from its task config; --running-step ROBOT=S
 overrides it (e.g. hopper=0.02), and the table and the JSON say which was used.
 
@@ -20,7 +22,8 @@ Sections (--sections, default all):
   work added by more workers; tabular Q-learning from N = 1 and 2 envs over ROS
   (robot_rl.vector_training, whose envs do not wait for each other's steps); and two one-env direct
   processes started at once, with no vector env and no ROS, against one alone: what the machine's
-  cores give to independent envs, the ceiling the speedups are read against.
+  cores give to independent envs, the ceiling the speedups are read against (when it is below
+  CEILING_WARNING, the table says that this run did not have two free cores).
 - deep: Stable-Baselines3 DQN (robot_rl/config/dqn.yaml) learning for a number of env steps on one
   env over ROS and direct; its env steps per second of wall time, gradient steps included.
 - gazebo: the tutorials' Gazebo-style step.
@@ -68,6 +71,7 @@ class BenchRobot:
 
 ROBOTS = {"cube": BenchRobot(ONE_DISK_WALK, 180.0, {1.0: 20, 0.0: 50}),
           "hopper": BenchRobot(STAY_UP, 60.0, {1.0: 100, 0.0: 200})}
+CEILING_WARNING = 1.5  # 2 independent direct processes below this speedup: the run did not have two free cores
 DEEP_STEPS = 4000  # env steps of DQN learning (its first learning_starts only collect)
 
 
@@ -457,6 +461,7 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
         if "gazebo" in sections:
             r.update(gazebo_style_rtf1_steps_per_s=median(s["gazebo_1"]),
                      gazebo_style_max_speed_steps_per_s=median(s["gazebo_0"]))
+        r["per_repetition"] = dict(s)
         report[robot] = r
     if "training" in sections:
         report["cube_100_episodes_wall_s"] = median(cube_training)
@@ -471,14 +476,32 @@ def _row(report: dict, label: str, value: Any, fmt: str) -> None:
             cells.append(fmt.format(value(report[robot])))
         except KeyError:
             cells.append("")
-    print(f"| {label:52} | " + " | ".join(f"{cell:>8}" for cell in cells) + " |")
+    print(f"| {label:52} | " + " | ".join(f"{cell:>9}" for cell in cells) + " |")
+
+
+def _range_row(report: dict, label: str, key: str, scale: float = 1.0) -> None:
+    """The lowest and highest repetition of a ratio, when there was more than one."""
+    if report["repetitions"] > 1:
+        _row(report, f"  {label}: lowest-highest repetition",
+             lambda r: "{:.2f}-{:.2f}".format(*(scale * f(r["per_repetition"][key]) for f in (min, max))), "{}")
+
+
+def ceiling_warnings(report: dict) -> list[str]:
+    """A line per robot whose two independent direct processes ran below CEILING_WARNING x one alone."""
+    lines = []
+    for robot in ROBOTS:
+        speedup = report.get(robot, {}).get("scaling", {}).get("independent_direct_processes_speedup", {}).get("2")
+        if speedup is not None and speedup < CEILING_WARNING:
+            lines.append(f"{robot}: two independent direct processes ran only {speedup:.2f}x as fast as one: this run "
+                         f"did not have two free cores, and its scaling figures are bounded by that")
+    return lines
 
 
 def print_table(report: dict) -> None:
     print(f"\n{report['machine']}\n{report['date']}, median of {report['repetitions']} repetitions, load average "
           f"{report['load_average_at_end']:.2f} at the end\n")
-    print(f"| {'':52} | " + " | ".join(f"{robot:>8}" for robot in ROBOTS) + " |")
-    print(f"|{'-' * 54}|" + "|".join("-" * 9 + ":" for _ in ROBOTS) + "|")
+    print(f"| {'':52} | " + " | ".join(f"{robot:>9}" for robot in ROBOTS) + " |")
+    print(f"|{'-' * 54}|" + "|".join("-" * 10 + ":" for _ in ROBOTS) + "|")
     _row(report, "running_step (s)", lambda r: r["running_step"], "{:g}")
     rows = [("one env over ROS (lockstep), env steps/s", "ros_lockstep_steps_per_s", "{:.0f}"),
             ("one env direct (in-process), env steps/s", "direct_steps_per_s", "{:.0f}"),
@@ -486,6 +509,8 @@ def print_table(report: dict) -> None:
             ("ROS lockstep x real time", "ros_lockstep_real_time_factor", "{:.1f}")]
     for label, key, fmt in rows:
         _row(report, label, lambda r, key=key: r[key], fmt)
+        if key == "ratio_ros_to_direct":
+            _range_row(report, "ROS / direct", "ratio")
     for backend, part, label in (("direct", "physics", "direct: physics (World.step)"),
                                  ("direct", "sensors_and_task", "direct: sensors, task env"),
                                  ("ros", "client", "ROS: client (task env, calls)"),
@@ -501,6 +526,7 @@ def print_table(report: dict) -> None:
         for n in SCALING_ENVS[1:]:
             _row(report, f"vector env, {backend}, N = {n}: speedup over N = 1",
                  lambda r, backend=backend, n=n: r["scaling"][backend]["speedup"][str(n)], "{:.2f}")
+            _range_row(report, "speedup", f"{backend}_efficiency_{n}", scale=n)
             _row(report, f"vector env, {backend}, N = {n}: parallel efficiency",
                  lambda r, backend=backend, n=n: r["scaling"][backend]["parallel_efficiency"][str(n)], "{:.2f}")
     for n in (1, 2):
@@ -508,16 +534,21 @@ def print_table(report: dict) -> None:
              lambda r, n=n: r["scaling"]["qlearn_ros"]["steps_per_s"][str(n)], "{:.0f}")
     _row(report, "tabular Q-learning over ROS, N = 2: speedup", lambda r: r["scaling"]["qlearn_ros"]["speedup"]["2"],
          "{:.2f}")
+    _range_row(report, "speedup", "qlearn_speedup_2")
     _row(report, "2 independent direct processes: speedup over 1",
          lambda r: r["scaling"]["independent_direct_processes_speedup"]["2"], "{:.2f}")
+    _range_row(report, "speedup", "independent_speedup_2")
     _row(report, "DQN learning over ROS, env steps/s", lambda r: r["dqn"]["ros_steps_per_s"], "{:.0f}")
     _row(report, "DQN learning direct, env steps/s", lambda r: r["dqn"]["direct_steps_per_s"], "{:.0f}")
     _row(report, "DQN: ROS / direct", lambda r: r["dqn"]["ratio_ros_to_direct"], "{:.2f}")
+    _range_row(report, "DQN: ROS / direct", "deep_ratio")
     _row(report, "Gazebo-style step at RTF 1, steps/s", lambda r: r["gazebo_style_rtf1_steps_per_s"], "{:.1f}")
     _row(report, "Gazebo-style step at max speed, steps/s", lambda r: r["gazebo_style_max_speed_steps_per_s"],
          "{:.1f}")
     if "cube_100_episodes_wall_s" in report:
         print(f"cube: 100 training episodes over ROS in {report['cube_100_episodes_wall_s']:.1f} s")
+    for line in ceiling_warnings(report):
+        print(f"\nnote: {line}")
 
 
 def _running_step(text: str) -> tuple[str, float]:
