@@ -503,14 +503,11 @@ def print_table(report: dict) -> None:
     print(f"| {'':52} | " + " | ".join(f"{robot:>9}" for robot in ROBOTS) + " |")
     print(f"|{'-' * 54}|" + "|".join("-" * 10 + ":" for _ in ROBOTS) + "|")
     _row(report, "running_step (s)", lambda r: r["running_step"], "{:g}")
-    rows = [("one env over ROS (lockstep), env steps/s", "ros_lockstep_steps_per_s", "{:.0f}"),
-            ("one env direct (in-process), env steps/s", "direct_steps_per_s", "{:.0f}"),
-            ("ROS / direct", "ratio_ros_to_direct", "{:.2f}"),
-            ("ROS lockstep x real time", "ros_lockstep_real_time_factor", "{:.1f}")]
-    for label, key, fmt in rows:
-        _row(report, label, lambda r, key=key: r[key], fmt)
-        if key == "ratio_ros_to_direct":
-            _range_row(report, "ROS / direct", "ratio")
+    _row(report, "one env over ROS (lockstep), env steps/s", lambda r: r["ros_lockstep_steps_per_s"], "{:.0f}")
+    _row(report, "one env direct (in-process), env steps/s", lambda r: r["direct_steps_per_s"], "{:.0f}")
+    _row(report, "ROS / direct", lambda r: r["ratio_ros_to_direct"], "{:.2f}")
+    _range_row(report, "ROS / direct", "ratio")
+    _row(report, "ROS lockstep x real time", lambda r: r["ros_lockstep_real_time_factor"], "{:.1f}")
     for backend, part, label in (("direct", "physics", "direct: physics (World.step)"),
                                  ("direct", "sensors_and_task", "direct: sensors, task env"),
                                  ("ros", "client", "ROS: client (task env, calls)"),
