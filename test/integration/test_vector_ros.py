@@ -64,6 +64,8 @@ def test_two_ros_workers_step_in_parallel_on_masters_of_their_own_as_direct_work
                     master = rosgraph.Master("/test", master_uri=uri)
                     assert master.lookupService("/pybullet_sim/step").startswith("rosrpc://127.0.0.1:")
                     assert any(topic == "/moving_cube/odom" for topic, _ in master.getPublishedTopics("/"))
+                assert {os.sched_getscheduler(pid) for pid in all_pids(env)} == {os.SCHED_BATCH}, \
+                    "each worker's master and sim node inherit its SCHED_BATCH class"
             observations, infos = env.reset(seed=9)
             start = infos["sim_time"]
             rows = [observations]

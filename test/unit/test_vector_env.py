@@ -50,6 +50,9 @@ def test_reset_step_close_contract(task):
     pids = [info["pid"] for info in env.workers.worker_info]
     try:
         assert env.num_envs == 2 and env.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
+        assert [os.sched_getscheduler(pid) for pid in pids] == [os.SCHED_BATCH] * 2, \
+            "workers run as SCHED_BATCH: waking one never preempts the parent before it wakes the next"
+        assert os.sched_getscheduler(0) == os.SCHED_OTHER, "the parent keeps its class"
         assert env.single_observation_space == make_env(task, params=params).observation_space
         observations, infos = env.reset(seed=3)
         assert observations.shape == (2, *env.single_observation_space.shape)

@@ -17,6 +17,10 @@ a terminal reaches the whole process group (the masters and sim nodes end at onc
 ends the workers through close(). Each worker and each process it starts gets SIGTERM from the kernel
 when its parent dies (PR_SET_PDEATHSIG), and a worker ends when its pipe to the parent closes.
 
+Workers run in Linux's SCHED_BATCH class, and so does every process they start (`run_as_batch`): the
+parent wakes the workers one after another, and a normal worker woken on the parent's CPU preempts the
+parent before it has woken the next worker, which then starts late.
+
 Two faces: `RobotVectorEnv` is a gymnasium VectorEnv; `robot_rl.deep.RobotVecEnv` is a
 Stable-Baselines3 VecEnv over the same workers.
 """
@@ -93,6 +97,17 @@ def _worker_env(index: int, recipe: WorkerRecipe) -> tuple[gymnasium.Env[Any, An
     return env, sim
 
 
+def run_as_batch() -> None:
+    """Put this process, and the processes it starts from now on, in Linux's SCHED_BATCH scheduling class:
+    their wake-ups never preempt the running task, so a parent that wakes N workers in turn is not
+    interrupted by the first before it has woken the others (no privilege needed; where the system refuses,
+    e.g. a seccomp filter, the process keeps its class)."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_BATCH, os.sched_param(0))
+    except (AttributeError, OSError):  # not Linux, or not allowed here
+        pass
+
+
 def _raise_system_exit(_signum: int, _frame: Any) -> None:
     raise SystemExit(1)
 
@@ -100,6 +115,7 @@ def _raise_system_exit(_signum: int, _frame: Any) -> None:
 def _worker(index: int, recipe: WorkerRecipe, conn: multiprocessing.connection.Connection) -> None:
     """A worker's life: make the env, then answer one reply per command until "close" or the pipe closes."""
     set_pdeathsig(signal.SIGTERM)
+    run_as_batch()  # before its master and sim node start: they inherit it
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _raise_system_exit)  # ends the worker through the finally below
     env, sim = None, None
