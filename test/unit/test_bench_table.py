@@ -55,3 +55,10 @@ def test_a_run_without_two_free_cores_says_so(capsys, independent, warned):
     lines = table(capsys, report(len(independent), independent))
     notes = [line for line in lines if line.startswith("note: cube: two independent direct processes ran only")]
     assert bool(notes) == warned, lines[-3:]
+
+
+def test_the_lockstep_bound_is_two_for_equal_steps_and_lower_the_wider_they_spread():
+    assert bench.lockstep_speedup_bound([0.001] * 50) == pytest.approx(2.0)
+    # half the steps take 1 ms, half 3 ms: the slower of two takes 3 ms with probability 3/4, mean 2 ms
+    assert bench.lockstep_speedup_bound([0.001, 0.003] * 50) == pytest.approx(2 * 2.0 / 2.5)
+    assert bench.lockstep_speedup_bound([0.001, 0.003] * 50, n=4) == pytest.approx(4 * 2.0 / (3 - 2 / 16))

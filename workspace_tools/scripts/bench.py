@@ -15,7 +15,9 @@ overrides it (e.g. hopper=0.02), and the table and the JSON say which was used.
 Sections (--sections, default all):
 - lockstep: one env over ROS (the sim node of a roslaunch'd sim launch) and direct (in-process), and
   where a step's CPU time goes: over ROS the client process and the sim node, direct the physics
-  (World.step) and the rest (reading the sensors, the task env).
+  (World.step) and the rest (reading the sensors, the task env); and, from each env's step times
+  (resets included), the most a vector env that steps 2 such envs together could gain over one
+  (lockstep_speedup_bound): its every step waits for the slower env.
 - scaling: robot_rl.vector's gymnasium vector env with N = 1, 2, 4 workers, over ROS (each worker
   with its own master and sim node) and direct; parallel efficiency = steps/s at N / (N x at 1); and
   the CPU time per env step of every process involved, which says whether a loss of efficiency is
@@ -47,6 +49,7 @@ import sys
 import tempfile
 import time
 from collections import defaultdict
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -107,10 +110,19 @@ def _sim_node_pid() -> int:
     return int(answer[2])
 
 
+def lockstep_speedup_bound(step_times: Sequence[float], n: int = 2) -> float:
+    """The most a vector env that steps n envs together can gain over one env with these step times: each
+    of its steps lasts as long as the slowest of n, so n x mean / E[max of n] (the n steps drawn
+    independently from these times; the expectation is exact over them)."""
+    ordered, count = sorted(step_times), len(step_times)
+    expected_max = sum(t * ((k / count) ** n - ((k - 1) / count) ** n) for k, t in enumerate(ordered, 1))
+    return n * (sum(ordered) / count) / expected_max
+
+
 def worker_lockstep(robot: str, backend: str, steps: int, running_step: float) -> dict:
     """One env, random actions: env steps/s, and where the CPU time of a step goes (microseconds per env step):
     over ROS this process (the task env and its service calls) and the sim node; direct the physics
-    (World.step) and everything else (sensors and the task env)."""
+    (World.step) and everything else (sensors and the task env); and lockstep_speedup_bound at N = 2."""
     import numpy as np
     if backend == "ros":
         import rospy
@@ -132,13 +144,17 @@ def worker_lockstep(robot: str, backend: str, steps: int, running_step: float) -
     physics_s[0] = 0.0
     wall_start, start, cpu_start = time.time(), time.perf_counter(), time.process_time()
     sim_start = _cpu_s(_stat_fields(sim_pid)) if sim_pid else 0.0
+    step_times = []
     for _ in range(steps):
+        step_start = time.perf_counter()
         _, _, terminated, truncated, _ = env.step(int(rng.integers(env.action_space.n)))
         if terminated or truncated:
             env.reset()
+        step_times.append(time.perf_counter() - step_start)
     elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu_start
     result = {"steps_per_s": steps / elapsed, "running_step": env.unwrapped.running_step,
-              "wall_start": wall_start, "wall_end": wall_start + elapsed}
+              "wall_start": wall_start, "wall_end": wall_start + elapsed,
+              "lockstep_speedup_bound_2": lockstep_speedup_bound(step_times)}
     if sim_pid:
         result["cpu_us_per_step"] = {"client": 1e6 * cpu / steps,
                                      "sim_node": 1e6 * (_cpu_s(_stat_fields(sim_pid)) - sim_start) / steps}
@@ -378,6 +394,8 @@ def _rep(tmp: Path, rep: int, robot: str, running_step: float, sections: set[str
         for part, value in (*ros["cpu_us_per_step"].items(), *direct["cpu_us_per_step"].items()):
             s[f"cpu_{part}"].append(value)
         s["ratio"].append(ros["steps_per_s"] / direct["steps_per_s"])
+        for backend, result in (("ros", ros), ("direct", direct)):
+            s[f"{backend}_lockstep_bound_2"].append(result["lockstep_speedup_bound_2"])
         _log(f"rep {rep + 1} {robot}: one env over ROS {ros['steps_per_s']:.0f}/s, "
              f"direct {direct['steps_per_s']:.0f}/s")
     if "scaling" in sections:
@@ -441,6 +459,8 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
             r.update(ros_lockstep_steps_per_s=median(s["ros"]), direct_steps_per_s=median(s["direct"]),
                      ratio_ros_to_direct=median(s["ratio"]),
                      ros_lockstep_real_time_factor=median(s["ros"]) * running_steps[robot],
+                     lockstep_speedup_bound={backend: {"2": median(s[f"{backend}_lockstep_bound_2"])}
+                                             for backend in ("ros", "direct")},
                      cpu_us_per_step={"ros": {part: median(s[f"cpu_{part}"]) for part in ("client", "sim_node")},
                                       "direct": {part: median(s[f"cpu_{part}"])
                                                  for part in ("physics", "sensors_and_task")}})
@@ -513,6 +533,10 @@ def print_table(report: dict) -> None:
                                  ("ros", "client", "ROS: client (task env, calls)"),
                                  ("ros", "sim_node", "ROS: sim node (physics, service)")):
         _row(report, f"CPU us/env step, {label}", lambda r, b=backend, p=part: r["cpu_us_per_step"][b][p], "{:.0f}")
+    for backend in ("ros", "direct"):
+        _row(report, f"N = 2 lockstep speedup bound, {backend} step times",
+             lambda r, backend=backend: r["lockstep_speedup_bound"][backend]["2"], "{:.2f}")
+        _range_row(report, "bound", f"{backend}_lockstep_bound_2")
     for backend in ("ros", "direct"):
         for n in SCALING_ENVS:
             _row(report, f"vector env, {backend}, N = {n}, env steps/s",
