@@ -11,9 +11,11 @@ from sensor_msgs.msg import JointState
 
 from pybullet_sim import messages
 from pybullet_sim.client import CommandPublisher, SensorSubscriber, SimConnection, SimConnectionError
+from pybullet_sim.readings import unpack_readings
 from pybullet_sim.srv import StepRequest
 
-WHEEL_COMMAND = "/moving_cube/inertia_wheel_roll_joint_velocity_controller/command"
+WHEEL_CONTROLLER = "inertia_wheel_roll_joint_velocity_controller"
+WHEEL_COMMAND = f"/moving_cube/{WHEEL_CONTROLLER}/command"
 TIMEOUT = 5.0
 EFFORT_LIMIT = 200.0  # URDF effort limit of inertia_wheel_roll_joint
 P_GAIN = 1.0          # config/moving_cube_sim.yaml
@@ -45,26 +47,45 @@ class CubeLockstepTest(unittest.TestCase):
         return (stamp, self.joints.wait_newer(joints_mark, TIMEOUT, stamp),
                 self.odom.wait_newer(odom_mark, TIMEOUT, stamp))
 
+    def lockstep_calls(self):
+        """~step and ~step_packed, each as a call of a step count (the two refuse bad requests alike)."""
+        return {"/pybullet_sim/step": self.sim.step,
+                "/pybullet_sim/step_packed": lambda steps: self.sim.step_packed(steps, [], [])}
+
     def test_step_is_refused_while_running(self):
         self.sim.unpause()
         try:
-            with self.assertRaisesRegex(SimConnectionError, "running.*pause_physics"):
-                self.sim.step(1)
+            for service, call in self.lockstep_calls().items():
+                with self.assertRaisesRegex(SimConnectionError, f"{service} refused: .*running.*pause_physics"):
+                    call(1)
         finally:
             self.sim.pause()
 
     def test_step_of_zero_is_refused(self):
-        with self.assertRaisesRegex(SimConnectionError, "steps must be between 1 and 100000"):
-            self.sim.step(0)
+        for service, call in self.lockstep_calls().items():
+            with self.assertRaisesRegex(SimConnectionError, f"{service}: steps must be between 1 and 100000"):
+                call(0)
 
     def test_step_beyond_the_maximum_is_refused(self):
         """Step.srv's MAX_STEPS (100 s of sim time at 1 ms): more is refused and nothing moves."""
         before = self.step(1)[0]
-        for steps in (StepRequest.MAX_STEPS + 1, 1_000_000_000):
-            expected = f"between 1 and {StepRequest.MAX_STEPS} \\(got {steps}\\)"
-            with self.assertRaisesRegex(SimConnectionError, expected):
-                self.sim.step(steps)
+        for service, call in self.lockstep_calls().items():
+            for steps in (StepRequest.MAX_STEPS + 1, 1_000_000_000):
+                expected = f"{service}: steps must be between 1 and {StepRequest.MAX_STEPS} \\(got {steps}\\)"
+                with self.assertRaisesRegex(SimConnectionError, expected):
+                    call(steps)
         self.assertEqual(self.step(1)[0], before + rospy.Duration(0, 1_000_000))
+
+    def test_step_packed_answers_the_values_of_exactly_n_steps_later(self):
+        """~step_packed: the commands in the request, exactly n physics steps, the joint's values at the new time."""
+        self.step(300)  # landed
+        packed = self.sim.step_packed(40, [WHEEL_CONTROLLER], [50.0])
+        joints, (odom,) = unpack_readings(packed.values, packed.names, ["p3d"])
+        self.assertAlmostEqual(joints.stamp, 0.34, places=9)
+        self.assertEqual(odom.stamp, joints.stamp)
+        self.assertGreater(joints.velocity[0], 1.0, "the wheel should spin up towards the commanded 50 rad/s")
+        stamp, _, _ = self.step(1)
+        self.assertEqual(stamp, rospy.Time(0, 341_000_000))
 
     def test_step_advances_exactly_n_physics_steps(self):
         stamp, joints, odom = self.step(40)

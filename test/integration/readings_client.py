@@ -1,4 +1,5 @@
-"""Helper of test_sim_node.py: the lockstep step and reset answered with every sensor's message, or packed.
+"""Helper of test_sim_node.py: the lockstep step (~step, ~step_packed) and reset answered with every sensor's
+message, or packed.
 
 Subscribes to every sensor topic of the hopper's sim, then resets and steps with commands in the
 request (and once with a bad request), and prints one JSON object: whether each answer's messages are
@@ -67,20 +68,23 @@ def main() -> None:
     step = same_as_published(answer.readings, subscribers, marks)
     # Steps of 50 ms until one answers with a contact point (the foot bounces a little).
     packed_steps: list[dict[str, Any]] = []
+    packed_stamps = []
     while len(packed_steps) < 40 and not any(packed["contact_points"] for packed in packed_steps):
         marks = [s.count for s in subscribers.values()]
-        packed_steps.append(same_readings_as_published(
-            sim.step_with(50, controllers, [0.0, 0.0, 0.0], packed=True).packed, subscribers, marks))
+        packed = sim.step_packed(50, controllers, [0.0, 0.0, 0.0])
+        packed_stamps.append(packed.values[0])
+        packed_steps.append(same_readings_as_published(packed, subscribers, marks))
     marks = [s.count for s in subscribers.values()]
     packed_reset = same_readings_as_published(sim.reset_packed(restart_time=False), subscribers, marks)
     errors = []
-    for names, values in ((["no_such_controller"], [1.0]), (controllers, [0.0])):
-        try:
-            sim.step_with(1, names, values)
-        except SimConnectionError as error:
-            errors.append(str(error))
+    for step_call in (sim.step_with, sim.step_packed):
+        for names, values in ((["no_such_controller"], [1.0]), (controllers, [0.0])):
+            try:
+                step_call(1, names, values)
+            except SimConnectionError as error:
+                errors.append(str(error))
     print(json.dumps({"reset": reset, "step": step, "packed_steps": packed_steps, "packed_reset": packed_reset,
-                      "stamp": answer.stamp.to_sec(),
+                      "stamp": answer.stamp.to_sec(), "packed_stamps": packed_stamps,
                       "positions": list(answer.readings.joint_states.position), "errors": errors}))
 
 

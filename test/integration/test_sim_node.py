@@ -50,7 +50,13 @@ def test_step_and_reset_answer_with_the_messages_they_publish_or_their_packed_va
     assert report["packed_steps"][-1]["contact_points"] >= 1, "the standing hopper's foot should touch the ground"
     assert report["packed_reset"] == {**every, "contact_points": report["packed_reset"]["contact_points"]}
     assert report["stamp"] == 0.2
+    # ~step_packed advanced exactly 50 physics steps a call; values[0] is the new sim time.
+    assert [round(stamp, 9) for stamp in report["packed_stamps"]] == \
+        [round(0.2 + 0.05 * k, 9) for k in range(1, len(report["packed_stamps"]) + 1)]
     # The commands in the request moved the joints towards their targets within 0.2 s (PID p = 10).
     assert report["positions"][0] > 0.1 and report["positions"][1] < -0.05 and report["positions"][2] < -0.1
-    assert "no controller named no_such_controller (controllers: haa_joint_position_controller" in report["errors"][0]
-    assert "controllers and commands differ in length" in report["errors"][1]
+    for service, errors in (("/pybullet_sim/step:", report["errors"][:2]), ("/pybullet_sim/step_packed:",
+                                                                            report["errors"][2:])):
+        assert f"{service} no controller named no_such_controller (controllers: haa_joint_position_controller" \
+            in errors[0]
+        assert f"{service} controllers and commands differ in length" in errors[1]

@@ -95,7 +95,7 @@ def test_every_process_is_gone_after_an_exception_in_a_worker(tmp_path):
         env.step([0, 0])
         os.kill(env.workers.worker_info[1]["children"][1], signal.SIGKILL)  # worker 1's sim node dies
         with pytest.raises(WorkerError, match=r"worker 1 \(ros\) failed: SimConnectionError: service "
-                                              r"/pybullet_sim/step failed"):
+                                              r"/pybullet_sim/step_packed failed"):
             env.step([0, 0])
     finally:
         env.close()

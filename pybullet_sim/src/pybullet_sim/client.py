@@ -20,11 +20,22 @@ from std_srvs.srv import Empty
 
 from gazebo_msgs.srv import GetPhysicsProperties
 from pybullet_sim.msg import PackedReadings, Readings
-from pybullet_sim.srv import Render, RenderRequest, Reset, ResetRequest, Step, StepRequest, StepResponse
+from pybullet_sim.srv import (
+    Render,
+    RenderRequest,
+    Reset,
+    ResetRequest,
+    Step,
+    StepPacked,
+    StepPackedRequest,
+    StepRequest,
+    StepResponse,
+)
 
 from .messages import image_array
 
 STEP_SERVICE = "/pybullet_sim/step"
+STEP_PACKED_SERVICE = "/pybullet_sim/step_packed"
 RESET_SERVICE = "/pybullet_sim/reset"
 RENDER_SERVICE = "/pybullet_sim/render"
 PHYSICS_SERVICE = "/gazebo/get_physics_properties"
@@ -193,7 +204,7 @@ class SimConnection:
     def __init__(self, timeout: float = 10.0, hint: str = HINT):
         self.timeout = timeout
         self.hint = hint
-        for name in GAZEBO_SERVICES + (STEP_SERVICE, RESET_SERVICE, PHYSICS_SERVICE):
+        for name in GAZEBO_SERVICES + (STEP_SERVICE, STEP_PACKED_SERVICE, RESET_SERVICE, PHYSICS_SERVICE):
             try:
                 rospy.wait_for_service(name, timeout)
             except rospy.ROSInterruptException:
@@ -202,6 +213,8 @@ class SimConnection:
                 raise SimConnectionError(f"service {name} is not available after {timeout} s; {hint}") from None
         self._empty = {name: rospy.ServiceProxy(name, Empty, persistent=True) for name in GAZEBO_SERVICES}
         self._step = rospy.ServiceProxy(STEP_SERVICE, Step, persistent=True)
+        self._step_packed = rospy.ServiceProxy(STEP_PACKED_SERVICE, StepPacked, persistent=True)
+        self._packed_request = StepPackedRequest()
         self._reset = rospy.ServiceProxy(RESET_SERVICE, Reset, persistent=True)
         self._physics = rospy.ServiceProxy(PHYSICS_SERVICE, GetPhysicsProperties, persistent=True)
         self._request = StepRequest()
@@ -250,19 +263,24 @@ class SimConnection:
         request.steps = steps
         request.command_topics = [c.topic for c in commands]
         request.command_counts = [c.count for c in commands]
-        request.controllers, request.commands, request.return_readings, request.packed = [], [], False, False
+        request.controllers, request.commands, request.return_readings = [], [], False
         return self._call(STEP_SERVICE, self._step, request).stamp
 
-    def step_with(self, steps: int, controllers: list[str], values: list[float], packed: bool = False) -> StepResponse:
+    def step_with(self, steps: int, controllers: list[str], values: list[float]) -> StepResponse:
         """Command `controllers` to `values`, advance the paused sim `steps` physics steps, and return the
-        answer: the new sim time and every sensor's message of it (`readings`), or with `packed` their
-        values (`packed`, a PackedReadings: see pybullet_sim.readings.unpack_readings)."""
+        answer: the new sim time and every sensor's message of it (`readings`)."""
         request = self._request
         request.steps = steps
         request.command_topics, request.command_counts = [], []
-        request.controllers, request.commands = controllers, values
-        request.return_readings, request.packed = True, packed
+        request.controllers, request.commands, request.return_readings = controllers, values, True
         return self._call(STEP_SERVICE, self._step, request)
+
+    def step_packed(self, steps: int, controllers: list[str], values: list[float]) -> PackedReadings:
+        """step_with() through ~step_packed: returns every sensor's values instead of its message (a
+        PackedReadings, see pybullet_sim.readings.unpack_readings; values[0] is the new sim time)."""
+        request = self._packed_request
+        request.steps, request.controllers, request.commands = steps, controllers, values
+        return self._call(STEP_PACKED_SERVICE, self._step_packed, request).packed
 
     def reset(self, restart_time: bool) -> Readings:
         """Gazebo's reset_world (or with `restart_time` reset_simulation); returns every sensor's message after it."""
@@ -285,7 +303,7 @@ class SimConnection:
 
     def close(self) -> None:
         self._watchdog.close()
-        for proxy in (*self._empty.values(), self._step, self._reset, self._physics,
+        for proxy in (*self._empty.values(), self._step, self._step_packed, self._reset, self._physics,
                       *([self._render] if self._render else [])):
             proxy.close()
 

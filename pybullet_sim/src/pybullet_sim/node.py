@@ -64,10 +64,20 @@ from gazebo_msgs.srv import (
     SetPhysicsPropertiesResponse,
 )
 from pybullet_sim.msg import PackedReadings, Readings
-from pybullet_sim.srv import Render, RenderResponse, Reset, ResetResponse, Step, StepRequest, StepResponse
+from pybullet_sim.srv import (
+    Render,
+    RenderResponse,
+    Reset,
+    ResetResponse,
+    Step,
+    StepPacked,
+    StepPackedResponse,
+    StepRequest,
+    StepResponse,
+)
 
 from . import messages, physics_properties
-from .client import RENDER_SERVICE, RESET_SERVICE, STEP_SERVICE, synchronous_publisher
+from .client import RENDER_SERVICE, RESET_SERVICE, STEP_PACKED_SERVICE, STEP_SERVICE, synchronous_publisher
 from .config import ConfigError, SensorConfig, parse_robot_config
 from .controller_manager import ControllerManager
 from .physics_properties import OdeConfig, PhysicsProperties
@@ -173,6 +183,7 @@ class SimNode:
         rospy.Service("/gazebo/reset_simulation", Empty, self._handle_reset_simulation)
         rospy.Service("/gazebo/reset_world", Empty, self._handle_reset_world)
         rospy.Service(STEP_SERVICE, Step, self._handle_step)
+        rospy.Service(STEP_PACKED_SERVICE, StepPacked, self._handle_step_packed)
         rospy.Service(RESET_SERVICE, Reset, self._handle_reset)
         for name, srv_type, handler in (
                 ("get_physics_properties", GetPhysicsProperties, self._handle_get_physics),
@@ -190,7 +201,7 @@ class SimNode:
         rospy.Service(RENDER_SERVICE, Render, self._handle_render)
         rospy.on_shutdown(self._wake_main_loop)
         with self._lock:
-            self._publish_all(force_clock=True)
+            self._publish_all(self._stamp(), force_clock=True)
         rospy.loginfo("pybullet_sim: %s loaded, time step %.4f s, %s, real_time_factor %.2f",
                       self.world.robot_name, time_step, "paused" if self._paused else "running",
                       self.real_time_factor)
@@ -262,10 +273,11 @@ class SimNode:
             self._last_clock_wall = now
             self._clock_pub.publish(Clock(clock=stamp))
 
-    def _publish_all(self, force_clock: bool = False, answer: str | None = None) -> Readings | PackedReadings | None:
-        """Publish every sensor once stamped now (after a lockstep step or a reset), and /clock if due.
-        Returns, as `answer` asks, the messages published ("messages"), their values ("packed"), or None."""
-        stamp = self._stamp()
+    def _publish_all(self, stamp: rospy.Time, force_clock: bool = False,
+                     answer: str | None = None) -> Readings | PackedReadings | None:
+        """Publish every sensor once stamped `stamp`, the time now (after a lockstep step or a reset), and
+        /clock if due. Returns, as `answer` asks, the messages published ("messages"), their values
+        ("packed"), or None."""
         self._publish_clock(stamp, force_clock)
         wanted = answer == "messages"
         joints, joint_msg = self._publish_joint_states(stamp, wanted)
@@ -302,7 +314,7 @@ class SimNode:
         for schedule in (self._joint_schedule, *self._sensor_schedules):
             schedule.restart(count)
 
-    def _step_world(self, steps: int) -> None:
+    def _step_world(self, service: str, steps: int) -> None:
         """Advance `steps` physics steps (World lock held), letting the other services in every STEP_SLICE."""
         done, slice_end = 0, time.monotonic() + STEP_SLICE
         while done < steps:
@@ -316,18 +328,19 @@ class SimNode:
                 finally:
                     self._lock.acquire()
                 if shutting_down():
-                    raise rospy.ServiceException(f"{STEP_SERVICE} interrupted after {done} of {steps} steps: "
+                    raise rospy.ServiceException(f"{service} interrupted after {done} of {steps} steps: "
                                                  f"{SHUTTING_DOWN}")
                 slice_end = time.monotonic() + STEP_SLICE
 
-    def _command(self, controller: str, value: float, where: str, caller: str) -> None:
-        """Command a controller (World lock held); a non-finite value is ignored with a throttled warning."""
+    def _command(self, controller: str, value: float, caller: str, via: str) -> None:
+        """Command a controller (World lock held) from `caller` `via` a topic or service; a non-finite value
+        is ignored with a throttled warning."""
         if not self.world.set_command(controller, value):
             now = time.monotonic()
             if now - self._last_bad_command_warning > 5.0:
                 self._last_bad_command_warning = now
-                rospy.logwarn("pybullet_sim: ignored non-finite command %r on %s from %s (the command stays %g; "
-                              "this warning is throttled to one per 5 s)", value, where, caller,
+                rospy.logwarn("pybullet_sim: ignored non-finite command %r for %s on %s from %s (the command stays "
+                              "%g; this warning is throttled to one per 5 s)", value, controller, via, caller,
                               self.world.command(controller))
 
     # -- callbacks ------------------------------------------------------------------------------
@@ -335,7 +348,7 @@ class SimNode:
         caller = msg._connection_header.get("callerid", "") if hasattr(msg, "_connection_header") else ""
         try:
             with self._exclusive():
-                self._command(self._command_topics[topic], msg.data, topic, caller)
+                self._command(self._command_topics[topic], msg.data, caller, topic)
                 key = (topic, caller)
                 self._received[key] = self._received.get(key, 0) + 1
                 self._commands_arrived.notify_all()
@@ -360,54 +373,70 @@ class SimNode:
         with self._exclusive():
             self.world.reset_simulation()
             self._restart_schedules()
-            self._publish_all(force_clock=True)
+            self._publish_all(self._stamp(), force_clock=True)
         return EmptyResponse()
 
     def _handle_reset_world(self, _request):
         with self._exclusive():
             self.world.reset_world()
-            self._publish_all(force_clock=True)
+            self._publish_all(self._stamp(), force_clock=True)
         return EmptyResponse()
+
+    def _check_step(self, service: str, steps: int, controllers, commands) -> None:
+        """Refuse (ServiceException) a lockstep request's bad step count or commands; changes nothing."""
+        if not 1 <= steps <= StepRequest.MAX_STEPS:
+            raise rospy.ServiceException(f"{service}: steps must be between 1 and {StepRequest.MAX_STEPS} "
+                                         f"(got {steps}); call it again for more")
+        if len(controllers) != len(commands):
+            raise rospy.ServiceException(f"{service}: controllers and commands differ in length")
+        if not self._controller_names.issuperset(controllers):
+            unknown = [c for c in controllers if c not in self._controller_names]
+            raise rospy.ServiceException(f"{service}: no controller named {', '.join(unknown)} "
+                                         f"(controllers: {', '.join(sorted(self._controller_names))})")
+
+    def _lockstep(self, service: str, steps: int, controllers, commands, caller: str,
+                  announced: list[tuple[str, int]]) -> rospy.Time:
+        """(World lock held) Wait for the `announced` (topic, count) commands from `caller`, apply the
+        request's commands, step; returns the new time."""
+        if not self._paused:
+            raise rospy.ServiceException(f"{service} refused: the simulation is running; call "
+                                         f"/gazebo/pause_physics first (lockstep steps a paused simulation)")
+        if announced and not self._commands_arrived.wait_for(
+                lambda: all(self._received.get((t, caller), 0) >= n for t, n in announced), self.command_timeout):
+            missing = [f"{t} (announced {n}, received {self._received.get((t, caller), 0)})"
+                       for t, n in announced if self._received.get((t, caller), 0) < n]
+            raise rospy.ServiceException(
+                f"{service}: commands from {caller} did not arrive within {self.command_timeout} s on "
+                f"{'; '.join(missing)}; check that the publisher is connected to the sim node")
+        for controller, value in zip(controllers, commands):
+            self._command(controller, value, caller, service)
+        self._step_world(service, steps)
+        return self._stamp()
 
     def _handle_step(self, request):
         caller = request._connection_header.get("callerid", "")
-        if not 1 <= request.steps <= StepRequest.MAX_STEPS:
-            raise rospy.ServiceException(f"{STEP_SERVICE}: steps must be between 1 and {StepRequest.MAX_STEPS} "
-                                         f"(got {request.steps}); call it again for more")
+        self._check_step(STEP_SERVICE, request.steps, request.controllers, request.commands)
         if len(request.command_topics) != len(request.command_counts):
             raise rospy.ServiceException(f"{STEP_SERVICE}: command_topics and command_counts differ in length")
         unknown = [t for t in request.command_topics if t not in self._command_topics]
         if unknown:
             raise rospy.ServiceException(f"{STEP_SERVICE}: no controller listens on {', '.join(unknown)} "
                                          f"(command topics: {', '.join(sorted(self._command_topics))})")
-        if len(request.controllers) != len(request.commands):
-            raise rospy.ServiceException(f"{STEP_SERVICE}: controllers and commands differ in length")
-        unknown = [c for c in request.controllers if c not in self._controller_names]
-        if unknown:
-            raise rospy.ServiceException(f"{STEP_SERVICE}: no controller named {', '.join(unknown)} "
-                                         f"(controllers: {', '.join(sorted(self._controller_names))})")
         announced = list(zip(request.command_topics, request.command_counts))
         with self._exclusive():
-            if not self._paused:
-                raise rospy.ServiceException(f"{STEP_SERVICE} refused: the simulation is running; call "
-                                             f"/gazebo/pause_physics first (lockstep steps a paused simulation)")
-            arrived = self._commands_arrived.wait_for(
-                lambda: all(self._received.get((t, caller), 0) >= n for t, n in announced), self.command_timeout)
-            if not arrived:
-                missing = [f"{t} (announced {n}, received {self._received.get((t, caller), 0)})"
-                           for t, n in announced if self._received.get((t, caller), 0) < n]
-                raise rospy.ServiceException(
-                    f"{STEP_SERVICE}: commands from {caller} did not arrive within {self.command_timeout} s on "
-                    f"{'; '.join(missing)}; check that the publisher is connected to the sim node")
-            for controller, value in zip(request.controllers, request.commands):
-                self._command(controller, value, f"{STEP_SERVICE} (controller {controller})", caller)
-            self._step_world(request.steps)
+            stamp = self._lockstep(STEP_SERVICE, request.steps, request.controllers, request.commands, caller,
+                                   announced)
             if not request.return_readings:
-                self._publish_all()
-                return StepResponse(stamp=self._stamp())
-            if request.packed:
-                return StepResponse(stamp=self._stamp(), packed=self._publish_all(answer="packed"))
-            return StepResponse(stamp=self._stamp(), readings=self._publish_all(answer="messages"))
+                self._publish_all(stamp)
+                return StepResponse(stamp=stamp)
+            return StepResponse(stamp=stamp, readings=self._publish_all(stamp, answer="messages"))
+
+    def _handle_step_packed(self, request):
+        self._check_step(STEP_PACKED_SERVICE, request.steps, request.controllers, request.commands)
+        with self._exclusive():
+            stamp = self._lockstep(STEP_PACKED_SERVICE, request.steps, request.controllers, request.commands,
+                                   request._connection_header.get("callerid", ""), [])
+            return StepPackedResponse(self._publish_all(stamp, answer="packed"))
 
     def _handle_reset(self, request):
         with self._exclusive():
@@ -417,8 +446,8 @@ class SimNode:
             else:
                 self.world.reset_world()
             if request.packed:
-                return ResetResponse(packed=self._publish_all(force_clock=True, answer="packed"))
-            return ResetResponse(readings=self._publish_all(force_clock=True, answer="messages"))
+                return ResetResponse(packed=self._publish_all(self._stamp(), force_clock=True, answer="packed"))
+            return ResetResponse(readings=self._publish_all(self._stamp(), force_clock=True, answer="messages"))
 
     # -- Gazebo's physics, world and model services ---------------------------------------------
     def _handle_get_physics(self, _request):

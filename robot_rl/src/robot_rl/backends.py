@@ -218,8 +218,7 @@ class RosBackend(Backend):
     def step(self, physics_steps: int) -> Readings:
         pending = self._pending
         self._pending = {}
-        answer = self.sim.step_with(physics_steps, list(pending), list(pending.values()), packed=True)
-        return self._readings(answer.packed)
+        return self._readings(self.sim.step_packed(physics_steps, list(pending), list(pending.values())))
 
     def render(self, width: int, height: int) -> np.ndarray:
         return self.sim.render(width, height)
