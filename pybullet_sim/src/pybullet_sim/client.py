@@ -1,5 +1,5 @@
 """Client side of the sim: Gazebo's services, the lockstep step and reset (answered with every sensor's
-message), counted command publishers and sensor subscribers that wait (bounded) for fresh readings.
+message or its values), counted command publishers and sensor subscribers that wait (bounded) for fresh readings.
 
 Every wait here has a timeout and fails with a SimConnectionError naming the topic or service and
 what to check. Service proxies are persistent (one socket for the whole run).

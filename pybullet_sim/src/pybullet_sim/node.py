@@ -6,9 +6,10 @@ loop advances physics at ~real_time_factor x wall time (0 = as fast as possible)
 sensor at its own rate of sim time, and paused, where time only moves through the lockstep service
 ~step (pybullet_sim/Step), which publishes every sensor once per call and can answer with those very
 messages (pybullet_sim/Readings), so that a lockstep client needs one service call per step and no
-subscription; ~reset (pybullet_sim/Reset) is Gazebo's reset_world or reset_simulation answered the
-same way. ~render (pybullet_sim/Render) answers an RGB image of the robot from the World's following
-camera.
+subscription; ~step_packed (pybullet_sim/StepPacked) is the same step answered with the sensors' values
+(pybullet_sim/PackedReadings) for clients that want readings; ~reset (pybullet_sim/Reset) is Gazebo's
+reset_world or reset_simulation answered either way. ~render (pybullet_sim/Render) answers an RGB
+image of the robot from the World's following camera.
 
 Services, with Gazebo's names and types: /gazebo/{pause,unpause}_physics, reset_{simulation,world}
 (std_srvs/Empty), /gazebo/{get,set}_physics_properties, get_world_properties, {get,set}_model_state,

@@ -3,9 +3,9 @@
 Both backends expose the same three calls, each returning the same `Readings`:
 `reset(restart_time)`, `set_command(controller, value)` + `step(physics_steps)`; and the same
 `render(width, height)`, an RGB frame from the sim's camera that follows the robot. The ROS backend
-is lockstep: one call of the sim's step service carries the commands, advances the paused sim exactly
-N physics steps and answers with every sensor's values at the new time (packed as numbers and names;
-the sim also publishes them on the sensors' topics for any subscriber).
+is lockstep: one call of the sim's ~step_packed service carries the commands, advances the paused sim
+exactly N physics steps and answers with every sensor's values at the new time (packed as numbers and
+names; the sim also publishes them on the sensors' topics for any subscriber).
 The direct backend makes the same calls on an in-process World and reads every sensor once per
 call, as the sim node publishes them once, so the same seed and actions give the same readings.
 """
@@ -151,10 +151,10 @@ def init_ros_node(name: str) -> None:
 class RosBackend(Backend):
     """The robot behind a running sim node, in lockstep over ROS services.
 
-    A step is one call of the sim's step service: it carries the commands set since the last step,
-    advances the paused sim, and answers with every sensor's values at the new time, packed as numbers
-    and names (the values of the messages the sim publishes on the sensors' topics for any subscriber),
-    so the env waits on one socket and never on a topic. Resets go through the sim's reset service,
+    A step is one call of the sim's ~step_packed service: it carries the commands set since the last
+    step, advances the paused sim, and answers with every sensor's values at the new time, packed as
+    numbers and names (the values of the messages the sim publishes on the sensors' topics for any
+    subscriber), so the env waits on one socket and never on a topic. Resets go through the sim's reset service,
     answered the same way.
     The robot (topics, controllers, sensors) is read from the sim node's own parameters, so the env
     and the sim cannot disagree; `robot` is the robot the caller expects, checked against them.
