@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections.abc import Sequence
 from contextlib import contextmanager
 
 import rospy
@@ -383,7 +384,7 @@ class SimNode:
             self._publish_all(self._stamp(), force_clock=True)
         return EmptyResponse()
 
-    def _check_step(self, service: str, steps: int, controllers, commands) -> None:
+    def _check_step(self, service: str, steps: int, controllers: Sequence[str], commands: Sequence[float]) -> None:
         """Refuse (ServiceException) a lockstep request's bad step count or commands; changes nothing."""
         if not 1 <= steps <= StepRequest.MAX_STEPS:
             raise rospy.ServiceException(f"{service}: steps must be between 1 and {StepRequest.MAX_STEPS} "
@@ -395,7 +396,7 @@ class SimNode:
             raise rospy.ServiceException(f"{service}: no controller named {', '.join(unknown)} "
                                          f"(controllers: {', '.join(sorted(self._controller_names))})")
 
-    def _lockstep(self, service: str, steps: int, controllers, commands, caller: str,
+    def _lockstep(self, service: str, steps: int, controllers: Sequence[str], commands: Sequence[float], caller: str,
                   announced: list[tuple[str, int]]) -> rospy.Time:
         """(World lock held) Wait for the `announced` (topic, count) commands from `caller`, apply the
         request's commands, step; returns the new time."""
