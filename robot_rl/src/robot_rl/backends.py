@@ -154,8 +154,8 @@ class RosBackend(Backend):
     A step is one call of the sim's ~step_packed service: it carries the commands set since the last
     step, advances the paused sim, and answers with every sensor's values at the new time, packed as
     numbers and names (the values of the messages the sim publishes on the sensors' topics for any
-    subscriber), so the env waits on one socket and never on a topic. Resets go through the sim's reset service,
-    answered the same way.
+    subscriber), so the env waits on one socket and never on a topic. Resets go through the sim's reset
+    service, answered the same way.
     The robot (topics, controllers, sensors) is read from the sim node's own parameters, so the env
     and the sim cannot disagree; `robot` is the robot the caller expects, checked against them.
     Makes this process a ROS node (init_ros_node) if it is not one yet. Pauses the sim for lockstep;
