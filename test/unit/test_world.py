@@ -1,9 +1,11 @@
-"""Unit tests for pybullet_sim.world.World on the moving cube (PyBullet DIRECT, no ROS)."""
+"""Unit tests for pybullet_sim.world.World on the moving cube, and for replayed starts also on the monoped
+(PyBullet DIRECT, no ROS)."""
 import copy
 import math
 
 import pybullet as p
 import pytest
+import yaml
 
 from pybullet_sim.config import ConfigError, parse_robot_config
 from pybullet_sim.readings import OdometryReading
@@ -278,3 +280,121 @@ def test_odometry_reading_fields(world):
     assert reading.stamp == world.time
     assert reading.stamp == pytest.approx(0.037)
     assert reading.position == pytest.approx(world.link_pose("cube_body")[0], abs=0.1)
+
+
+# -- 9. replayed starts ---------------------------------------------------------------------------
+@pytest.fixture(params=["cube", "hopper"])
+def any_world(request, make_world):
+    """Each robot as configured; the hopper's is built from hopper_description's files."""
+    if request.param == "cube":
+        return make_world()
+    from hopper_training.monoped_env import MONOPED
+    config = parse_robot_config(yaml.safe_load(MONOPED.sim_config_path.read_text()))
+    world = World(MONOPED.urdf_path.read_text(), config, time_step=TIME_STEP)
+    request.addfinalizer(world.close)
+    return world
+
+
+def command_all(world, value):
+    for name in world.controller_names:
+        world.set_command(name, value)
+
+
+def wander(world, seed):
+    """An episode of varied commands, so that each start below follows a different history."""
+    for k in range(6):
+        command_all(world, (-1) ** k * (seed + k) * 0.2)
+        world.step(80)
+
+
+def raw_state(world):
+    joints = world.read_joint_states()  # no noise on joint states
+    return joints.position, joints.velocity, joints.effort, world.model_state()
+
+
+def start(world, steps=150, batches=1):
+    """reset_world, the start's commands, `steps` steps (replayed when the World can, else in `batches`
+    calls of step), then 200 steps under other commands: whether it was replayed, the time the start took,
+    and the states after it and after the 200 steps."""
+    world.reset_world()
+    command_all(world, 0.05)
+    reset_time = world.time_ns
+    replayed = world.replay_from_reset(steps)
+    if not replayed:
+        for _ in range(batches):
+            world.step(steps // batches)
+    after_start = (world.time_ns - reset_time, world.substeps, raw_state(world))
+    command_all(world, -0.3)
+    world.step(200)
+    return replayed, after_start, raw_state(world)
+
+
+def test_a_replayed_start_is_bit_for_bit_the_stepped_one(any_world):
+    """The third same start after a reset is restored from memory and gives exactly the states, time and
+    trajectory that stepping gave, whatever came before; the second, taken in batches as the sim node takes
+    lockstep steps, is the one remembered."""
+    world = any_world
+    runs = []
+    for seed, batches in ((1, 1), (2, 15), (3, 1), (4, 1)):
+        wander(world, seed)
+        runs.append(start(world, batches=batches))
+    assert [replayed for replayed, _, _ in runs] == [False, False, True, True]
+    assert all(run[1:] == runs[0][1:] for run in runs[1:])
+    assert runs[0][1][0] == 150 * 1_000_000  # the start took 150 steps of sim time, replayed or not
+    assert runs[0][2] != runs[0][1][2]  # the 200 steps after it moved the robot
+
+
+def test_a_start_is_replayed_only_with_its_own_commands_and_steps(world):
+    for _ in range(3):
+        start(world)
+    assert start(world)[0]
+    assert not start(world, steps=140)[0]  # another number of steps
+    world.reset_world()
+    world.set_command(WHEEL, 7.0)  # another command
+    assert not world.replay_from_reset(150)
+
+
+def test_nothing_is_replayed_after_a_change_other_than_commands(world):
+    for _ in range(3):
+        start(world)
+    world.reset_world()
+    world.set_model_state(world.model_state())
+    assert not world.replay_from_reset(150)
+    world.step(10)
+    assert not world.replay_from_reset(150)  # steps were taken since the reset
+
+
+def test_a_start_with_a_command_changed_on_the_way_is_not_remembered(world):
+    world.reset_world()
+    world.replay_from_reset(150)
+    world.reset_world()
+    assert not world.replay_from_reset(150)  # seen twice: these steps would be remembered...
+    world.step(100)
+    world.set_command(WHEEL, 5.0)  # ...but a command changes before they end
+    world.step(50)
+    world.reset_world()
+    assert not world.replay_from_reset(150)
+
+
+def test_physics_changes_forget_every_start(world):
+    for _ in range(3):
+        start(world)
+    world.set_gravity((0.0, 0.0, -3.0))
+    stepped = start(world)
+    assert not stepped[0]
+    for _ in range(2):
+        start(world)
+    world.set_gravity((0.0, 0.0, -9.81))
+    assert not start(world)[0]
+    world.set_time_step(TIME_STEP)
+    assert not start(world)[0]
+
+
+def test_the_starts_remembered_are_bounded(world):
+    from pybullet_sim.world import MAX_REMEMBERED_STARTS
+    counts = range(10, 10 + MAX_REMEMBERED_STARTS + 1)
+    for _ in range(2):
+        for steps in counts:
+            start(world, steps=steps)
+    replayed = [start(world, steps=steps)[0] for steps in counts]
+    assert replayed == [True] * MAX_REMEMBERED_STARTS + [False]

@@ -317,7 +317,10 @@ class SimNode:
             schedule.restart(count)
 
     def _step_world(self, service: str, steps: int) -> None:
-        """Advance `steps` physics steps (World lock held), letting the other services in every STEP_SLICE."""
+        """Advance `steps` physics steps (World lock held), letting the other services in every STEP_SLICE; the
+        first steps after a reset may be replayed from memory (World.replay_from_reset)."""
+        if self.world.replay_from_reset(steps):
+            return
         done, slice_end = 0, time.monotonic() + STEP_SLICE
         while done < steps:
             batch = min(STEP_BATCH, steps - done)
