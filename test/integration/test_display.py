@@ -96,4 +96,5 @@ def test_human_mode_shows_pybullets_window_in_real_time(xvfb, tmp_path):
     assert report["warnings"] == [], "gymnasium's env checker (with its render checks) complained"
     assert report["render_returned"] == ["None"], "render() returns nothing in human mode"
     assert report["wall_s"] >= report["sim_s"], "human mode must not run faster than real time"
+    assert report["replayed"] == [False] * 3, "a World with PyBullet's window must never replay a start"
     assert report["red"] > 1000 and report["dark"] > 1000, f"the window should show the cube ({report}, {screenshot})"

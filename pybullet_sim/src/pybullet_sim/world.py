@@ -26,7 +26,8 @@ physics steps after a reset end in the same state whenever they are taken with t
 cube's 0.15 s landing after each reset is the case that costs: about 2.5 env steps). replay_from_reset
 restores that end state once it has seen the same start twice (PyBullet's saveState takes about 0.8 ms,
 some 45 of the cube's physics steps; restoreState a few microseconds); the trajectory that follows is bit
-for bit the one the steps would have given (test_world.py checks this for both robots).
+for bit the one the steps would have given (test_world.py checks this for both robots). A World with
+PyBullet's window never replays: there the mouse can move the robot during the steps.
 """
 from __future__ import annotations
 
@@ -268,6 +269,11 @@ class World:
         self._gravity = DEFAULT_GRAVITY
         self._solver = SolverSettings()
         self._rng = np.random.default_rng(seed)
+        self._at_reset = False  # nothing but commands has changed since the last reset (see replay_from_reset)
+        self._replays = not gui  # in PyBullet's window a user can drag the robot during the steps: never replay
+        self._start_ends: dict[_StartKey, _StartEnd] = {}
+        self._starts_seen: set[_StartKey] = set()
+        self._recording: tuple[_StartKey, int] | None = None  # a start to remember when step_count reaches this
         self._cid = p.connect(p.GUI if gui else p.DIRECT)
         if self._cid < 0:
             raise RuntimeError("PyBullet could not connect" + (" to a GUI (is DISPLAY set?)" if gui else ""))
@@ -345,10 +351,6 @@ class World:
         self._imu_previous: dict[str, tuple[float, tuple[float, float, float]]] = {}
         self._saved_state = p.saveState(physicsClientId=cid)
         self._reset_controllers()
-        self._at_reset = False  # nothing but commands has changed since the last reset (see replay_from_reset)
-        self._start_ends: dict[_StartKey, _StartEnd] = {}
-        self._starts_seen: set[_StartKey] = set()
-        self._recording: tuple[_StartKey, int] | None = None  # a start to remember when step_count reaches this
 
     # -- time and commands ----------------------------------------------------------------------
     @property
@@ -404,8 +406,9 @@ class World:
         True when the World has restored where these steps ended before (time advances by `count`);
         False when the caller must take them with step(), in one call or several. A start is remembered
         the second time it is seen (up to MAX_REMEMBERED_STARTS of them), and only when nothing but
-        commands changed between the reset and these steps, and nothing at all during them."""
-        if not self._at_reset:
+        commands changed between the reset and these steps, and nothing at all during them; never in a
+        World with PyBullet's window, where the mouse can move the robot."""
+        if not (self._at_reset and self._replays):
             return False
         self._at_reset = False
         key = _StartKey(count, tuple((c.command, c.running, c.memory) for c in self._controllers))
