@@ -392,8 +392,7 @@ class World:
                 if controllers:  # PyBullet applies a joint torque for one stepSimulation only
                     p.setJointMotorControlArray(body, indices, p.TORQUE_CONTROL, forces=efforts, physicsClientId=cid)
                 p.stepSimulation(physicsClientId=cid)
-        self.step_count += count
-        self._time_ns += count * self._step_ns
+        self._advance_time(count)
         self._controller_efforts = efforts
         if self._recording is not None and self.step_count >= self._recording[1]:
             if self.step_count == self._recording[1]:
@@ -425,11 +424,13 @@ class World:
             controller.memory = memory
         self._controller_efforts = list(end.efforts)
         if end.substeps != self._substeps:
-            p.setPhysicsEngineParameter(fixedTimeStep=self.time_step / end.substeps, physicsClientId=self._cid)
-            self._substeps = end.substeps
+            self._set_substeps(end.substeps)
+        self._advance_time(count)
+        return True
+
+    def _advance_time(self, count: int) -> None:
         self.step_count += count
         self._time_ns += count * self._step_ns
-        return True
 
     def _remember_start(self, key: _StartKey) -> None:
         self._start_ends[key] = _StartEnd(p.saveState(physicsClientId=self._cid),
@@ -459,9 +460,13 @@ class World:
         while load > SPIN_STEP_LIMIT * substeps and substeps < MAX_SUBSTEPS:
             substeps *= 2
         if substeps != self._substeps:
-            p.setPhysicsEngineParameter(fixedTimeStep=self.time_step / substeps, physicsClientId=self._cid)
-            self._substeps = substeps
+            self._set_substeps(substeps)
         return substeps
+
+    def _set_substeps(self, substeps: int) -> None:
+        """Make each PyBullet step 1/substeps of the physics step."""
+        p.setPhysicsEngineParameter(fixedTimeStep=self.time_step / substeps, physicsClientId=self._cid)
+        self._substeps = substeps
 
     # -- controllers (ros_control's controller manager drives these) ----------------------------
     @property
