@@ -72,3 +72,22 @@ def test_to_dict_is_json_and_names_the_edges():
     saved = json.loads(json.dumps(d.to_dict()))
     assert saved["format"] == "robot_rl.discretiser/1" and saved["indices"] == [0, 4]
     assert saved["edges"][0] == [-1.0, 0.0, 1.0]
+
+
+def test_bins_are_numpy_digitize_bins():
+    """The keys of saved Q-tables must not move: every value, on an edge or between, and +-inf, gets
+    numpy.digitize's bin, for linspace and explicit edges."""
+    import numpy as np
+    rng = np.random.default_rng(0)
+    d = Discretiser(LOW, HIGH, bins=10)
+    explicit = Discretiser.from_edges([[0.0], [10.0 ** e for e in range(-6, 0)], [-0.3, -0.02]])
+    for discretiser in (d, explicit):
+        edges = discretiser.to_dict()["edges"]
+        for _ in range(200):
+            obs = [float(rng.choice(e)) if rng.random() < 0.3 else float(rng.uniform(e[0] - 1.0, e[-1] + 1.0))
+                   for e in edges]
+            obs[int(rng.integers(len(obs)))] = float(rng.choice([math.inf, -math.inf, -0.0]))
+            assert discretiser.digitise(obs) == tuple(int(np.digitize(v, e)) for v, e in zip(obs, edges))
+        float32_obs = np.array([e[len(e) // 2] for e in edges], dtype=np.float32)
+        assert discretiser.digitise(float32_obs) == tuple(
+            int(np.digitize(v, e)) for v, e in zip(float32_obs.astype(float), edges))

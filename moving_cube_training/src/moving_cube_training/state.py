@@ -46,7 +46,7 @@ class CubeStateKey:
 
     def key(self, observation: np.ndarray) -> str:
         wheel_speed, _, roll, _, y_speed, yaw = (float(v) for v in observation)
-        return self.discretiser.key(np.array([wheel_speed, roll_phase(roll), y_speed, yaw]))
+        return self.discretiser.key([wheel_speed, roll_phase(roll), y_speed, yaw])
 
     def to_dict(self) -> dict[str, Any]:
         return {"format": FORMAT, "discretiser": self.discretiser.to_dict()}

@@ -1,10 +1,11 @@
-"""Observation -> Q-table state key, by binning each used dimension with numpy.digitize.
+"""Observation -> Q-table state key, by binning each used dimension as numpy.digitize does.
 
 Replaces the tutorials' keys built by concatenating str(float) values, in which "-0.0" and "0.0"
 were different states and nothing separated the numbers. Keys here are bin indices joined by "_".
 """
 from __future__ import annotations
 
+from bisect import bisect_right
 from collections.abc import Sequence
 from typing import Any
 
@@ -37,6 +38,7 @@ class Discretiser:
 
     def _use(self, edges: list[np.ndarray], indices: Sequence[int] | None) -> None:
         self.edges = edges
+        self._edge_lists = [e.tolist() for e in edges]  # bisect on floats: a key is computed twice a step
         self.indices = None if indices is None else [int(i) for i in indices]
         if self.indices is not None and len(self.indices) != len(edges):
             raise ValueError(f"indices has {len(self.indices)} entries, there are {len(edges)} dimensions")
@@ -54,31 +56,34 @@ class Discretiser:
         discretiser._use(arrays, indices)
         return discretiser
 
-    def _select(self, obs: Any) -> np.ndarray:
-        arr = np.asarray(obs, dtype=float)
-        if arr.ndim != 1:
-            raise ValueError(f"observation must be 1-D, got shape {arr.shape}")
+    def _select(self, obs: Any) -> list[float]:
+        values = np.asarray(obs, dtype=float)
+        dims: Sequence[int]
+        if values.ndim != 1:
+            raise ValueError(f"observation must be 1-D, got shape {values.shape}")
         if self.indices is None:
-            if arr.size != len(self.edges):
-                raise ValueError(f"observation has {arr.size} values, discretiser expects {len(self.edges)}")
-            used, dims = arr, list(range(arr.size))
+            if values.size != len(self.edges):
+                raise ValueError(f"observation has {values.size} values, discretiser expects {len(self.edges)}")
+            used, dims = values.tolist(), range(values.size)
         else:
-            if max(self.indices) >= arr.size:
-                raise ValueError(f"observation has {arr.size} values, indices {self.indices} need "
+            if max(self.indices) >= values.size:
+                raise ValueError(f"observation has {values.size} values, indices {self.indices} need "
                                  f"at least {max(self.indices) + 1}")
-            used, dims = arr[self.indices], self.indices
-        nan = np.flatnonzero(np.isnan(used))
-        if nan.size:
-            raise ValueError(f"observation dimension {dims[nan[0]]} is NaN")
+            every = values.tolist()
+            used, dims = [every[i] for i in self.indices], self.indices
+        for dim, value in zip(dims, used):
+            if value != value:
+                raise ValueError(f"observation dimension {dim} is NaN")
         return used
 
     def digitise(self, obs: Any) -> tuple[int, ...]:
-        """Bin index per used dimension: 0 below low, bins[i] at or above high."""
-        return tuple(int(np.digitize(v, e)) for v, e in zip(self._select(obs), self.edges))
+        """Bin index per used dimension: 0 below low, bins[i] at or above high (numpy.digitize's bins:
+        edges[k - 1] <= value < edges[k] gives k)."""
+        return tuple(map(bisect_right, self._edge_lists, self._select(obs)))
 
     def key(self, obs: Any) -> str:
         """State key such as "5_5_5_5_1_5_5_10"."""
-        return "_".join(str(i) for i in self.digitise(obs))
+        return "_".join(map(str, self.digitise(obs)))
 
     def to_dict(self) -> dict[str, Any]:
         return {"format": FORMAT, "edges": [e.tolist() for e in self.edges], "indices": self.indices}

@@ -1,15 +1,18 @@
 """Tabular Q-learning from N envs into one Q-table: the vector path beside QLearningTrainer's single env.
 
-The N envs (the workers of a robot_rl.vector.RobotVectorEnv, autoreset SAME_STEP) step side by side
-without a barrier: the trainer takes their replies in env order, round and round, learns each
-transition, and sends that env its next action at once (chosen from the one table with the one seeded
-RNG), so a worker waits for the trainer's turn with its own reply, never for the other envs' steps.
-The order of every choice and update is fixed, so a run repeats. Each episode that starts decays
+The N envs (the workers of a robot_rl.vector.RobotVectorEnv, autoreset SAME_STEP) step side by side:
+the trainer takes their replies in env order, round and round, learns each transition, and sends that
+env its next action at once (chosen from the one table with the one seeded RNG), before it writes an
+ended episode down. The envs are not stepped together as a vector env's are, but an env's reply waits
+until the replies before it in that order have been taken: the order of every choice and update is
+fixed, so a run repeats. Each episode that starts decays
 epsilon as the single-env loop does before each episode, so epsilon follows the same schedule per
 episode; training ends when nepisodes episodes have ended (the episodes still under way then are
 dropped). Episodes are logged in
 the order they end, with the same files (episodes.csv, qtable.json, learning_curve.png, summary.json)
-and one "EP:" line per episode that names its env and each env's episode count. A checkpoint holds
+and one "EP:" line per episode that names its env and each env's episode count, written while that
+env takes its next step (before it when a checkpoint is due: the checkpoint holds the table before
+the next action is chosen). A checkpoint holds
 the Q-table with the steps of the episodes under way at that moment: resume continues from it (those
 episodes start anew), so with N > 1 a resumed run is not bit-for-bit an uninterrupted one. When the
 envs fail or the run is stopped, the Q-table as it is and a summary marked incomplete are saved.
@@ -70,6 +73,28 @@ class VectorQLearningTrainer(QLearningTrainer):
             actions[i] = qlearn.chooseAction(keys[i])
             env.workers.send(i, "step", actions[i])
             in_flight[i] = True
+
+        def end_episode(i: int, episode: Episode, highest_return: float, epsilon: float) -> None:
+            """Count env i's ended episode (its `epsilon`), write its row and its EP line."""
+            nonlocal headline
+            metrics = self.task.metrics(episode)
+            headline = [*headline[-PROGRESS_WINDOW + 1:], metrics[self.task.headline_metric]]
+            state.highest_reward = max(state.highest_reward, highest_return)
+            if episode.terminated:
+                state.last_time_steps.append(episode.steps)
+            state.episode += 1
+            state.env_steps += episode.steps
+            state.sim_time += episode.duration
+            state.wall_time = time.monotonic() - wall_start
+            self.run.append_episode(EpisodeRecord(episode=state.episode, steps=episode.steps, return_=episode.return_,
+                                                  epsilon=epsilon, sim_time=state.sim_time, wall_time=state.wall_time,
+                                                  metrics=metrics))
+            self.on_episode(episode.return_)
+            self.log_episode(f"EP: {state.episode} - [alpha: {round(qlearn.alpha, 2)} - gamma: "
+                             f"{round(qlearn.gamma, 2)} - epsilon: {round(epsilon, 2)}] - Reward: "
+                             f"{episode.return_:.1f}     Time: {format_duration(state.wall_time)} - env "
+                             f"{i + 1}/{n} (episodes per env: {', '.join(map(str, per_env))})")
+
         for i in range(n):
             if active[i]:
                 send(i)
@@ -86,38 +111,28 @@ class VectorQLearningTrainer(QLearningTrainer):
                 steps[i] += 1
                 highest[i] = max(highest[i], returns[i])
                 self.on_step(reward, returns[i])
-                keys[i] = self.state_key.key(observation)  # after a reset: the next episode's first
-                if done:
-                    per_env[i] += 1
-                    episode = Episode(steps=steps[i], return_=returns[i], terminated=terminated,
-                                      duration=steps[i] * self.running_step, info=final[1])
-                    metrics = self.task.metrics(episode)
-                    headline = [*headline[-PROGRESS_WINDOW + 1:], metrics[self.task.headline_metric]]
-                    state.highest_reward = max(state.highest_reward, highest[i])
-                    if episode.terminated:
-                        state.last_time_steps.append(episode.steps)
-                    state.episode += 1
-                    state.env_steps += episode.steps
-                    state.sim_time += episode.duration
-                    state.wall_time = time.monotonic() - wall_start
-                    self.run.append_episode(EpisodeRecord(episode=state.episode, steps=episode.steps,
-                                                          return_=episode.return_, epsilon=qlearn.epsilon,
-                                                          sim_time=state.sim_time, wall_time=state.wall_time,
-                                                          metrics=metrics))
-                    self.on_episode(episode.return_)
-                    self.log_episode(f"EP: {state.episode} - [alpha: {round(qlearn.alpha, 2)} - gamma: "
-                                     f"{round(qlearn.gamma, 2)} - epsilon: {round(qlearn.epsilon, 2)}] - Reward: "
-                                     f"{episode.return_:.1f}     Time: {format_duration(state.wall_time)} - env "
-                                     f"{i + 1}/{n} (episodes per env: {', '.join(map(str, per_env))})")
-                    if state.episode % self.checkpoint_every == 0:
-                        self.checkpoint()
-                    returns[i], steps[i], highest[i] = 0.0, 0, -math.inf
-                    active[i] = started < params.nepisodes
-                    if active[i]:
-                        self._decay_epsilon()
-                        started += 1
-                if active[i] and not self.should_stop():
-                    send(i)
+                if not done:
+                    keys[i] = next_key
+                    if not self.should_stop():
+                        send(i)
+                    continue
+                keys[i] = self.state_key.key(observation)  # after the reset: the next episode's first
+                per_env[i] += 1
+                ended = (i, Episode(steps=steps[i], return_=returns[i], terminated=terminated,
+                                    duration=steps[i] * self.running_step, info=final[1]), highest[i], qlearn.epsilon)
+                returns[i], steps[i], highest[i] = 0.0, 0, -math.inf
+                checkpoint_due = (state.episode + 1) % self.checkpoint_every == 0
+                if checkpoint_due:  # the checkpoint holds the table before the next episode's first choice
+                    end_episode(*ended)
+                    self.checkpoint()
+                active[i] = started < params.nepisodes
+                if active[i]:
+                    self._decay_epsilon()
+                    started += 1
+                    if not self.should_stop():
+                        send(i)
+                if not checkpoint_due:  # while env i steps
+                    end_episode(*ended)
             now = time.monotonic()
             if now >= next_progress:
                 next_progress = now + self.progress_every_s
