@@ -22,7 +22,7 @@ Sections (--sections, default all):
   with its own master and sim node) and direct; parallel efficiency = steps/s at N / (N x at 1); and
   the CPU time per env step of every process involved, which says whether a loss of efficiency is
   work added by more workers; tabular Q-learning from N = 1 and 2 envs over ROS
-  (robot_rl.vector_training, whose envs do not wait for each other's steps); and two one-env direct
+  (robot_rl.vector_training, whose envs are not stepped together); and two one-env direct
   processes started at once, with no vector env and no ROS, against one alone: what the machine's
   cores give to independent envs, the ceiling the speedups are read against (when it is below
   CEILING_WARNING, the table says that this run did not have two free cores).
