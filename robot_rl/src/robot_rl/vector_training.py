@@ -5,17 +5,16 @@ the trainer takes their replies in env order, round and round, learns each trans
 env its next action at once (chosen from the one table with the one seeded RNG), before it writes an
 ended episode down. The envs are not stepped together as a vector env's are, but an env's reply waits
 until the replies before it in that order have been taken: the order of every choice and update is
-fixed, so a run repeats. Each episode that starts decays
-epsilon as the single-env loop does before each episode, so epsilon follows the same schedule per
-episode; training ends when nepisodes episodes have ended (the episodes still under way then are
-dropped). Episodes are logged in
-the order they end, with the same files (episodes.csv, qtable.json, learning_curve.png, summary.json)
-and one "EP:" line per episode that names its env and each env's episode count, written while that
-env takes its next step (before it when a checkpoint is due: the checkpoint holds the table before
-the next action is chosen). A checkpoint holds
-the Q-table with the steps of the episodes under way at that moment: resume continues from it (those
-episodes start anew), so with N > 1 a resumed run is not bit-for-bit an uninterrupted one. When the
-envs fail or the run is stopped, the Q-table as it is and a summary marked incomplete are saved.
+fixed, so a run repeats. Each episode that starts decays epsilon as the single-env loop does before
+each episode, so epsilon follows the same schedule per episode; training ends when nepisodes episodes
+have ended (the episodes still under way then are dropped). Episodes are logged in the order they
+end, with the same files (episodes.csv, qtable.json, learning_curve.png, summary.json) and one "EP:"
+line per episode that names its env and each env's episode count, written while that env takes its
+next step (before it when a checkpoint is due: the checkpoint holds the table before the next action
+is chosen). A checkpoint holds the Q-table with the steps of the episodes under way at that moment:
+resume continues from it (those episodes start anew), so with N > 1 a resumed run is not bit-for-bit
+an uninterrupted one. When the envs fail or the run is stopped, the Q-table as it is and a summary
+marked incomplete are saved.
 """
 from __future__ import annotations
 
