@@ -1,0 +1,39 @@
+"""docs/tasks.md is generated from the task specs and their env docstrings: it must be what its generator,
+workspace_tools/scripts/write_tasks_doc.py, writes now."""
+from __future__ import annotations
+
+import difflib
+import importlib
+import importlib.util
+from pathlib import Path
+from types import ModuleType
+
+REPO = Path(__file__).resolve().parents[2]
+GENERATOR = REPO / "workspace_tools" / "scripts" / "write_tasks_doc.py"
+PAGE = REPO / "docs" / "tasks.md"
+
+
+def load_generator() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("write_tasks_doc", GENERATOR)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_tasks_page_is_what_its_generator_writes():
+    generator = load_generator()
+    expected = generator.render(REPO)
+    actual = PAGE.read_text()
+    diff = "".join(list(difflib.unified_diff(actual.splitlines(True), expected.splitlines(True), "docs/tasks.md",
+                                             "generated"))[:40])
+    assert actual == expected, f"docs/tasks.md is out of date: run `{generator.REGENERATE}`\n{diff}"
+
+
+def test_the_tasks_page_has_every_task_with_its_docstring():
+    generator = load_generator()
+    page = PAGE.read_text()
+    for spec in generator.registered_tasks():
+        assert f"## {spec.env_id}\n" in page
+        module = importlib.import_module(spec.entry_point.split(":")[0])
+        assert "Reward:" in (module.__doc__ or ""), f"{module.__name__}'s docstring has no Reward: section"
