@@ -6,7 +6,8 @@
 What plain roslaunch does not: a required node (here: a training node) that fails makes the command
 fail (roslaunch exits 0 whatever its nodes did), a required node that finishes cleanly ends the
 launch without roslaunch's red "REQUIRED process has died" banner, and Ctrl-C exits 130. Starts a
-master if none is running, as roslaunch does.
+master if none is running, as roslaunch does. Nothing it started outlives it, however it ends (kill -9
+included: workspace_tools.launch_reaper).
 """
 import sys
 from typing import Any
@@ -16,6 +17,8 @@ import roslaunch.core
 import roslaunch.parent
 import roslaunch.pmon
 import roslaunch.rlutil
+
+from workspace_tools.launch_reaper import watch_launch
 
 INTERRUPTED = 130  # the shell's code for a command ended by SIGINT
 
@@ -45,6 +48,7 @@ def main(argv) -> int:
     launch_args = [arg for arg in argv if ":=" in arg]
     uuid = roslaunch.rlutil.get_or_generate_uuid(None, False)
     roslaunch.configure_logging(uuid)
+    watch_launch()
     codes = ExitCodes()
     parent = roslaunch.parent.ROSLaunchParent(uuid, [(launch_file, launch_args)], process_listeners=[codes])
     try:
