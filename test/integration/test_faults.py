@@ -136,6 +136,20 @@ def test_config_roslaunch_cannot_load_gives_one_line(master, tmp_path, content, 
     assert len(output.strip().splitlines()) <= 3, output
 
 
+def test_a_config_with_rosparams_evaluated_tag_is_refused_before_it_runs(master, tmp_path):
+    """rosparam evaluates !radians with eval() when roslaunch loads a YAML file: ./ws run refuses the tag."""
+    marker = tmp_path / "marker"
+    config = tmp_path / "config.yaml"
+    config.write_text(ONE_DISK_WALK.config_path.read_text().replace(
+        "alpha:", f'alpha: !radians __import__("os").system("touch {marker}") or 0.1\n  unused_alpha:', 1))
+    result = master.run([*CUBE_TRAINING, f"config:={config}", f"results_dir:={tmp_path / 'results'}"], timeout=120)
+    output = result.stdout + result.stderr
+    assert result.returncode == 1, output
+    line = one_line(output, "is not allowed in a config (rosparam would evaluate it as Python code)")
+    assert line.startswith("roslaunch_checked.py: cannot launch "), line
+    assert not marker.exists() and not (tmp_path / "results").exists()
+
+
 @pytest.mark.parametrize("args, expected", [
     (["nepisodes:=0"], "parameter 'nepisodes' = 0 out of range [1, inf]"),
     (["nepisodes:=many"], "parameter 'nepisodes' expected int, got 'many' (str)"),
