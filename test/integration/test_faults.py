@@ -136,6 +136,20 @@ def test_config_roslaunch_cannot_load_gives_one_line(master, tmp_path, content, 
     assert len(output.strip().splitlines()) <= 3, output
 
 
+def test_a_config_with_rosparams_evaluated_tag_is_refused_before_it_runs(master, tmp_path):
+    """rosparam evaluates !radians with eval() when roslaunch loads a YAML file: ./ws run refuses the tag."""
+    marker = tmp_path / "marker"
+    config = tmp_path / "config.yaml"
+    config.write_text(ONE_DISK_WALK.config_path.read_text().replace(
+        "alpha:", f'alpha: !radians __import__("os").system("touch {marker}") or 0.1\n  unused_alpha:', 1))
+    result = master.run([*CUBE_TRAINING, f"config:={config}", f"results_dir:={tmp_path / 'results'}"], timeout=120)
+    output = result.stdout + result.stderr
+    assert result.returncode == 1, output
+    line = one_line(output, "is not allowed in a config (rosparam would evaluate it as Python code)")
+    assert line.startswith("roslaunch_checked.py: cannot launch "), line
+    assert not marker.exists() and not (tmp_path / "results").exists()
+
+
 @pytest.mark.parametrize("args, expected", [
     (["nepisodes:=0"], "parameter 'nepisodes' = 0 out of range [1, inf]"),
     (["nepisodes:=many"], "parameter 'nepisodes' expected int, got 'many' (str)"),
@@ -558,6 +572,31 @@ def test_sigkill_of_the_trainer_between_checkpoints_then_resume(master, tmp_path
     one_line(output, f"after episode {saved} (epsilon")
     assert episodes(results) == list(range(1, 41)), "no episode lost or repeated"
     assert (results / "moving_cube" / "latest" / "episodes.csv").read_text().split("\n")[:saved + 1] == checkpointed
+
+
+def test_sigkill_of_the_launcher_leaves_no_process_of_the_run(tmp_path):
+    """kill -9 of what ./ws run starts (roslaunch_checked.py, which starts the master as ./ws run's does):
+    the master, rosout, the sim node and the trainer all end with it (roslaunch's nodes run in sessions
+    of their own and used to be reparented to PID 1 and left running)."""
+    uri = f"http://127.0.0.1:{free_port()}"
+    runner = Processes(tmp_path, cwd=REPO, ROS_MASTER_URI=uri, ROS_HOSTNAME="127.0.0.1", ROS_IP="127.0.0.1")
+    log = tmp_path / "run.log"
+    config = cube_config(tmp_path / "config.yaml", nepisodes=400, nsteps=50, max_pitch_angle=10.0,
+                         max_yaw_angle=10.0)
+    try:
+        with open(log, "w") as out:
+            launcher = runner.start([*CUBE_TRAINING, f"config:={config}", f"results_dir:={tmp_path / 'results'}"],
+                                    stdout=out, stderr=subprocess.STDOUT)
+        wait_for(logged_episode(log, 2), 120, "episode 2")
+        names = {Path(f"/proc/{pid}/comm").read_text().strip() for pid in processes_using(uri)}
+        assert {"rosmaster", "rosout"} <= names and len(names) >= 4, names
+        launcher.kill()
+        assert launcher.wait(10) == -signal.SIGKILL
+        wait_for(lambda: processes_using(uri) == [], 20, "the end of every process of the killed launch")
+    finally:
+        runner.close()
+        for pid in processes_using(uri):  # what the launch left running, had the test failed
+            os.kill(pid, signal.SIGKILL)
 
 
 def test_results_dir_that_is_a_file_gives_one_line(master, tmp_path):

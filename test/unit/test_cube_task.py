@@ -208,6 +208,11 @@ def test_numpy_integer_actions_are_accepted():
     assert wheel_commands([np.int64(1), np.int32(3)]) == [0.0, -100.0, -90.0]
 
 
+def test_a_0d_integer_array_is_an_action_as_sb3s_predict_gives_it():
+    """`action, _ = model.predict(obs); env.step(action)`: Discrete accepts a 0-d integer array, so does the env."""
+    assert wheel_commands([np.array(1), np.array(3, dtype=np.int32)]) == [0.0, -100.0, -90.0]
+
+
 # -- observation ---------------------------------------------------------------------------------
 
 def test_observation_order_dtype_and_bounds():
@@ -241,7 +246,7 @@ def test_step_before_reset_raises():
         env.step(0)
 
 
-@pytest.mark.parametrize("action", [5, -1, 2.5, "0"])
+@pytest.mark.parametrize("action", [5, -1, 2.5, "0", np.array(5), np.array([1]), np.array(1.0), np.array(True)])
 def test_action_outside_the_space_raises_value_error(action):
     backend = fake()
     env = make_env(backend)

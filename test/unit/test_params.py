@@ -131,3 +131,20 @@ def test_invalid_yaml_one_line(tmp_path):
     with pytest.raises(ParamError) as info:
         load_yaml_file(path)
     assert str(info.value).startswith(str(path)) and "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("value", ['!radians __import__("os").system("touch {marker}") or 0.1',
+                                   "!degrees 90", "rad(1)"])
+def test_rosparams_yaml_tags_are_refused_and_never_evaluated(tmp_path, value):
+    """rosparam (imported here as roslaunch and the nodes import it) registers !radians on yaml.SafeLoader and
+    evaluates it with eval(); a config is data: the tag is refused and nothing runs."""
+    import rosparam  # noqa: F401 (registers its tags on yaml.SafeLoader)
+    marker = tmp_path / "marker"
+    path = tmp_path / "config.yaml"
+    path.write_text(f"alpha: {value.format(marker=marker)}\n")
+    if value.startswith("!"):
+        with pytest.raises(ParamError, match=f"{path}: invalid YAML: could not determine a constructor for the tag"):
+            load_yaml_file(path)
+    else:
+        assert load_yaml_file(path) == {"alpha": "rad(1)"}  # a plain string, as YAML reads it
+    assert not marker.exists()

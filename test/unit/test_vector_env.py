@@ -2,7 +2,11 @@
 VectorEnv contract with SAME_STEP autoreset, determinism, errors in a worker, and no process left."""
 import json
 import os
+import shutil
 import signal
+import subprocess
+import sys
+import time
 
 import numpy as np
 import pytest
@@ -101,11 +105,66 @@ def test_an_exception_in_a_worker_names_it_and_the_others_close_cleanly():
     pids = [info["pid"] for info in env.workers.worker_info]
     try:
         env.reset(seed=0)
-        with pytest.raises(WorkerError, match=r"worker 1 \(direct\) failed: ValueError: action 99 is not in"):
-            env.step([0, 99])
+        env.workers.send(0, "step", 0)
+        env.workers.send(1, "step", 99)  # past the vector env's own check of the actions
+        with pytest.raises(WorkerError, match=r"worker 1 \(direct\) failed: ValueError: action 99 is not in") as error:
+            env.workers.receive_all()
     finally:
         env.close()
     assert not any(alive(pid) for pid in pids)
+    message = str(error.value)
+    assert "\n" not in message, "one line: the traceback goes to the worker's log folder"
+    folder = env.workers.log_dir / "worker1"
+    assert message.endswith(f"its traceback (if any) are kept in {folder}")
+    try:
+        assert "Traceback" in (folder / "traceback.txt").read_text(), "kept where the error says"
+    finally:
+        shutil.rmtree(env.workers.log_dir)
+
+
+ORPHANED_WORKERS = """
+import sys
+from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from robot_rl.vector import EnvWorkers
+if __name__ == "__main__":
+    workers = EnvWorkers(ONE_DISK_WALK, 2, backend="direct", seed=0)
+    print(*[info["pid"] for info in workers.worker_info], flush=True)
+    sys.stdin.read()  # until the test kills this process
+"""
+
+
+def test_the_workers_of_a_parent_killed_with_sigkill_end_and_remove_its_temporary_folder(tmp_path):
+    temporary = tmp_path / "tmp"
+    temporary.mkdir()
+    parent = subprocess.Popen([sys.executable, "-c", ORPHANED_WORKERS], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                              text=True, env={**os.environ, "TMPDIR": str(temporary)})
+    try:
+        pids = [int(pid) for pid in parent.stdout.readline().split()]
+        assert len(pids) == 2 and len(list(temporary.iterdir())) == 1, "the workers' folder"
+    finally:
+        parent.kill()
+        parent.wait(10)
+    deadline = time.monotonic() + 30.0
+    while any(alive(pid) for pid in pids) or list(temporary.iterdir()):
+        assert time.monotonic() < deadline, f"left: {[p for p in pids if alive(p)]}, {list(temporary.iterdir())}"
+        time.sleep(0.05)  # processes of another process: nothing notifies their end
+
+
+@pytest.mark.parametrize("actions, expected", [
+    ([0, 99], r"action 99 of env 1 is not in Discrete\(5\)"),
+    ([0, 2.5], r"action 0.0 of env 0 is not in Discrete\(5\)"),  # a float array: none of its actions is whole
+    ([0, 1, 2], r"3 actions for 2 envs"),
+])
+def test_a_bad_action_is_refused_before_any_worker_steps_and_the_workers_go_on(actions, expected):
+    env = make_vector_env(ONE_DISK_WALK, 2, backend="direct", seed=0, params=short(ONE_DISK_WALK, 50))
+    try:
+        first, _ = env.reset(seed=0)
+        with pytest.raises(ValueError, match=expected):
+            env.step(actions)
+        observations, *_ = env.step(np.array([1, 2]))
+        assert observations.shape == first.shape
+    finally:
+        env.close()
 
 
 def step_with_one_stopped(workers: EnvWorkers, stopped: int) -> None:

@@ -6,7 +6,9 @@
 What plain roslaunch does not: a required node (here: a training node) that fails makes the command
 fail (roslaunch exits 0 whatever its nodes did), a required node that finishes cleanly ends the
 launch without roslaunch's red "REQUIRED process has died" banner, and Ctrl-C exits 130. Starts a
-master if none is running, as roslaunch does.
+master if none is running, as roslaunch does. Nothing it started outlives it, however it ends (kill -9
+included: workspace_tools.launch_reaper). A YAML file with rosparam's !radians tag, which rosparam
+evaluates with eval(), is refused before anything in it runs.
 """
 import sys
 from typing import Any
@@ -16,6 +18,10 @@ import roslaunch.core
 import roslaunch.parent
 import roslaunch.pmon
 import roslaunch.rlutil
+import rosparam  # noqa: F401 (registers its YAML tags, which refuse_evaluated_yaml_tags then replaces)
+import yaml
+
+from workspace_tools.launch_reaper import watch_launch
 
 INTERRUPTED = 130  # the shell's code for a command ended by SIGINT
 
@@ -37,6 +43,16 @@ class ExitCodes(roslaunch.pmon.ProcessListener):
             self.failures.append(exit_code)
 
 
+def refuse_evaluated_yaml_tags() -> None:
+    """Make roslaunch refuse !radians (and rad(...)): Debian's rosparam evaluates it as Python with eval()."""
+    def refuse(loader, node):
+        raise yaml.constructor.ConstructorError(
+            None, None, f"{node.tag} {node.value!r} is not allowed in a config (rosparam would evaluate it as "
+                        f"Python code): write the number", node.start_mark)
+    for loader in (yaml.SafeLoader, yaml.Loader, yaml.FullLoader, yaml.UnsafeLoader):
+        loader.add_constructor("!radians", refuse)
+
+
 def main(argv) -> int:
     if not argv or argv[0] in ("-h", "--help"):
         print(__doc__, file=sys.stderr)
@@ -45,6 +61,8 @@ def main(argv) -> int:
     launch_args = [arg for arg in argv if ":=" in arg]
     uuid = roslaunch.rlutil.get_or_generate_uuid(None, False)
     roslaunch.configure_logging(uuid)
+    refuse_evaluated_yaml_tags()
+    watch_launch()
     codes = ExitCodes()
     parent = roslaunch.parent.ROSLaunchParent(uuid, [(launch_file, launch_args)], process_listeners=[codes])
     try:

@@ -121,8 +121,9 @@ class RobotEnv(gymnasium.Env[np.ndarray, int], Generic[P], abc.ABC):
     def step(self, action: int) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self.readings is None:
             raise gymnasium.error.ResetNeeded("call reset() before step()")
-        # A direct range check: Discrete.contains costs as much as a tenth of a lockstep exchange.
-        if not (isinstance(action, (int, np.integer)) and 0 <= action < self.action_space.n):
+        # A direct range check first: Discrete.contains costs as much as a tenth of a lockstep exchange.
+        if not (isinstance(action, (int, np.integer)) and 0 <= action < self.action_space.n) \
+                and not self.action_space.contains(action):  # e.g. SB3's predict(): a 0-d integer array
             raise ValueError(f"action {action!r} is not in {self.action_space}")
         self._apply_action(int(action), self.readings)
         self.readings = readings = self.backend.step(self.physics_steps)

@@ -141,8 +141,15 @@ class TaskParams(Params):
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):
-    """SafeLoader that rejects duplicate mapping keys instead of keeping the last one."""
+    """SafeLoader with YAML's own tags only, that rejects duplicate mapping keys instead of keeping the last.
 
+    Debian's rosparam, once imported, adds !radians (evaluated with eval()) and !degrees to
+    yaml.SafeLoader: this loader takes its constructors and implicit resolvers from PyYAML's base classes,
+    which nothing registers on, so a config is only ever data."""
+
+    yaml_constructors = dict(yaml.constructor.SafeConstructor.yaml_constructors)
+    yaml_implicit_resolvers = {first: list(resolvers)
+                               for first, resolvers in yaml.resolver.Resolver.yaml_implicit_resolvers.items()}
     path = ""
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:

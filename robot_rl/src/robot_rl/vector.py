@@ -74,6 +74,7 @@ class WorkerRecipe:
     seed: int
     ros_timeout: float
     log_dir: Path
+    own_log_dir: bool             # a temporary folder of the parent's, which nobody would remove if it died
     max_episode_steps: int | None
     env_kwargs: dict[str, Any]
 
@@ -114,6 +115,7 @@ def _raise_system_exit(_signum: int, _frame: Any) -> None:
 
 def _worker(index: int, recipe: WorkerRecipe, conn: multiprocessing.connection.Connection) -> None:
     """A worker's life: make the env, then answer one reply per command until "close" or the pipe closes."""
+    parent = os.getppid()
     set_pdeathsig(signal.SIGTERM)
     run_as_batch()  # before its master and sim node start: they inherit it
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -150,9 +152,12 @@ def _worker(index: int, recipe: WorkerRecipe, conn: multiprocessing.connection.C
                 raise ValueError(f"unknown worker command {command!r}")
     except (KeyboardInterrupt, SystemExit):
         pass
-    except BaseException as error:  # the parent re-raises it, naming the worker
+    except BaseException as error:  # the parent re-raises it in one line, naming the worker and its logs
+        folder = recipe.log_dir / f"worker{index}"
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / "traceback.txt").write_text(traceback.format_exc())
         try:
-            conn.send(("error", f"{type(error).__name__}: {error}\n{traceback.format_exc()}"))
+            conn.send(("error", f"{type(error).__name__}: {' '.join(str(error).split())}"))
         except OSError:
             pass
     finally:
@@ -166,6 +171,12 @@ def _worker(index: int, recipe: WorkerRecipe, conn: multiprocessing.connection.C
             rospy.signal_shutdown("the vector env closes this worker")  # unregisters while the master is up
             sim.close()
         conn.close()
+        if recipe.own_log_dir and os.getppid() != parent:  # the parent died (kill -9): nobody else cleans up
+            shutil.rmtree(recipe.log_dir / f"worker{index}", ignore_errors=True)
+            try:
+                os.rmdir(recipe.log_dir)  # the last worker out removes the folder
+            except OSError:
+                pass
 
 
 class EnvWorkers:
@@ -189,11 +200,12 @@ class EnvWorkers:
         self._pollers: list[select.poll] = []  # one per worker's pipe: receive() waits on it (bounded)
         self._processes: list[multiprocessing.process.BaseProcess] = []
         self.closed = False
+        self.failed = False  # a worker failed: close() keeps its logs where the error said they are
         context = multiprocessing.get_context("spawn")
         try:
             for i in range(n):
                 recipe = WorkerRecipe(task, self.params, backend, self.seeds[i], ros_timeout, self.log_dir,
-                                      max_episode_steps, env_kwargs)
+                                      self._own_log_dir, max_episode_steps, env_kwargs)
                 parent, child = context.Pipe()
                 process = context.Process(target=_worker, args=(i, recipe, child), name=f"robot_rl-worker{i}",
                                           daemon=True)
@@ -212,10 +224,14 @@ class EnvWorkers:
         # Per worker: its pid, its master's URI (None when direct) and the pids of its master and sim node.
         self.worker_info: list[dict[str, Any]] = [reply[3] for reply in ready]
 
+    def _failure(self, message: str) -> WorkerError:
+        """The error to raise; close() then keeps the workers' logs, which the message names."""
+        self.failed = True
+        return WorkerError(message)
+
     def _what_to_check(self, i: int) -> str:
-        if self.backend == "ros":
-            return f"its master's and sim node's logs are in {self.log_dir / f'worker{i}'}"
-        return "the traceback above comes from its env"
+        logs = "its traceback, master's and sim node's logs" if self.backend == "ros" else "its traceback"
+        return f"{logs} (if any) are kept in {self.log_dir / f'worker{i}'}"
 
     def send(self, i: int, command: str, data: Any = None) -> None:
         if self.closed:
@@ -223,8 +239,7 @@ class EnvWorkers:
         try:
             self._conns[i].send((command, data))
         except OSError as error:
-            raise WorkerError(f"worker {i} ({self.backend}) is gone ({error}); "
-                              f"{self._what_to_check(i)}") from None
+            raise self._failure(f"worker {i} ({self.backend}) is gone ({error}); {self._what_to_check(i)}") from None
         self._pending[i] = True
 
     def receive(self, i: int, timeout: float | None = None, what: str = "reply") -> Any:
@@ -242,17 +257,17 @@ class EnvWorkers:
             raise self._died(i, what) from None
         self._pending[i] = False
         if status == "error":
-            raise WorkerError(f"worker {i} ({self.backend}) failed: {data}")
+            raise self._failure(f"worker {i} ({self.backend}) failed: {data}; {self._what_to_check(i)}")
         return data
 
     def _late(self, i: int, timeout: float, what: str) -> WorkerError:
-        return WorkerError(f"worker {i} ({self.backend}, pid {self._processes[i].pid}) did not {what} within "
+        return self._failure(f"worker {i} ({self.backend}, pid {self._processes[i].pid}) did not {what} within "
                            f"{timeout:.0f} s (is the machine overloaded, or the sim frozen?); {self._what_to_check(i)}")
 
     def _died(self, i: int, what: str) -> WorkerError:
         self._processes[i].join(1.0)
-        return WorkerError(f"worker {i} ({self.backend}) died (exit code {self._processes[i].exitcode}) before "
-                           f"its {what}; {self._what_to_check(i)}")
+        return self._failure(f"worker {i} ({self.backend}) died (exit code {self._processes[i].exitcode}) before "
+                             f"its {what}; {self._what_to_check(i)}")
 
     def receive_all(self, timeout: float | None = None, what: str = "reply") -> list[Any]:
         """Every worker's reply, read in the order they arrive, within `timeout` for all of them; the first
@@ -307,12 +322,26 @@ class EnvWorkers:
                     process.join(CLOSE_TIMEOUT)
         for conn in self._conns:
             conn.close()
-        if self._own_log_dir:
+        if self._own_log_dir and not self.failed:
             shutil.rmtree(self.log_dir, ignore_errors=True)
 
     def __del__(self) -> None:
         if not getattr(self, "closed", True):
             self.close()
+
+
+def checked_actions(actions: Any, space: gymnasium.spaces.Space[Any], n: int) -> list[int]:
+    """One action per env, each checked against `space` before any is sent: a bad action is a ValueError
+    naming it and its env, and no worker steps (or fails on it)."""
+    values = np.asarray(actions)
+    if values.size != n:
+        raise ValueError(f"{values.size} actions for {n} envs: {actions!r}")
+    checked = []
+    for i, action in enumerate(values.reshape(n)):
+        if not space.contains(action):
+            raise ValueError(f"action {action.item()!r} of env {i} is not in {space}")
+        checked.append(int(action))
+    return checked
 
 
 class RobotVectorEnv(VectorEnv):
@@ -351,7 +380,7 @@ class RobotVectorEnv(VectorEnv):
         return np.stack([observation for observation, _ in replies]), infos
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        replies = self.workers.request_all("step", [int(a) for a in np.asarray(actions).reshape(self.num_envs)])
+        replies = self.workers.request_all("step", checked_actions(actions, self.single_action_space, self.num_envs))
         infos: dict[str, Any] = {}
         for i, (_, _, _, _, info, final) in enumerate(replies):
             if final is not None:
