@@ -21,7 +21,8 @@ import numpy as np
 import yaml
 
 from pybullet_sim.config import RobotConfig, parse_robot_config
-from pybullet_sim.readings import ContactReading, ImuReading, JointStateReading, OdometryReading, unpack_readings
+from pybullet_sim.readings import ContactReading, ImuReading, JointStateReading, OdometryReading
+from pybullet_sim.sensors import unpack_readings
 
 if TYPE_CHECKING:
     from .task import RobotSpec
