@@ -569,12 +569,13 @@ def markdown(report: dict, command: str) -> str:
     """docs/performance.md from a report: how and where it was measured, the table (rows with a figure),
     a note when the machine was loaded, and what made lockstep fast."""
     date = datetime.datetime.fromisoformat(report["date"]).astimezone(datetime.UTC)
-    lines = ["# Performance", "",
-             f"Written by `{command}` on {date:%Y-%m-%d %H:%M} UTC, on {report['machine']}.",
-             f"Every figure is the median of {report['repetitions']} repetition(s), each in fresh processes (a new "
-             f"master, sim node and client), with random actions and episode resets included; load average "
-             f"{report['load_average_at_end']:.2f} at the end. Regenerate this page with `./ws bench --markdown`.",
-             "", "| | " + " | ".join(ROBOTS) + " |", "|---|" + "---:|" * len(ROBOTS)]
+    reps = report["repetitions"]
+    lines = ["# Performance", "", f"Written by `{command}` on {date:%Y-%m-%d %H:%M} UTC.", "",
+             f"Machine: {report['machine']}; load average {report['load_average_at_end']:.2f} at the end.", "",
+             f"Every figure is the median of {reps} repetition{'s' if reps > 1 else ''}, each in fresh processes (a "
+             f"new master, sim node and client), with random actions and episode resets included. Regenerate this "
+             f"page with `./ws bench --markdown`.", "",
+             "| | " + " | ".join(ROBOTS) + " |", "|---|" + "---:|" * len(ROBOTS)]
     lines += ["| " + " | ".join([label.strip(), *cells]) + " |"
               for label, *cells in table_rows(report) if any(cells)]
     if "cube_100_episodes_wall_s" in report:
@@ -583,6 +584,9 @@ def markdown(report: dict, command: str) -> str:
     if warnings:
         lines += ["", "Note: the machine was loaded during this run, so its figures are lower than on two free "
                       "cores:", *(f"- {line}" for line in warnings)]
+    elif "scaling" not in report.get("sections", ["scaling"]):
+        lines += ["", "Note: this run had no scaling section, whose two independent processes tell whether the "
+                      "machine had two free cores."]
     lines += ["", "## What made lockstep fast", "", LOCKSTEP_FAST]
     return "\n".join(lines)
 
