@@ -224,7 +224,7 @@ class SimNode:
         if message_wanted or publisher.get_num_connections():
             msg = to_msg(reading, stamp)
             publisher.publish(msg)
-        if sensor.type == "p3d" and self._tf.pub_tf.get_num_connections():
+        if SENSOR_KINDS[sensor.type].broadcasts_pose and self._tf.pub_tf.get_num_connections():
             position, orientation = self.world.link_pose(sensor.link)
             self._tf.sendTransform(messages.transform_msg(sensor.frame_id, sensor.link, position, orientation, stamp))
         return reading, msg

@@ -2,7 +2,8 @@
 
 A kind (the `type` of a sensor in config/<robot>_sim.yaml: p3d, imu, contact) names its reading type,
 the World's reader, the ROS message the sim node publishes and its conversions both ways, its field
-in pybullet_sim/Readings and how its values are packed into pybullet_sim/PackedReadings. Adding a
+in pybullet_sim/Readings, how its values are packed into pybullet_sim/PackedReadings, and whether the
+sim node also broadcasts the sensor link's pose on /tf. Adding a
 sensor kind is one SensorKind in SENSOR_KINDS (with its reading type, World reader and message
 conversions). No ROS and no PyBullet are imported here: the message side is imported when asked for.
 
@@ -46,6 +47,7 @@ class SensorKind:
     # (values, names, value index, name index, stamp, frame_id) -> (reading, value index, name index)
     unpack: Callable[[Values, Names, int, int, float, str], tuple[Any, int, int]]
     messages: Callable[[], MessageSide]               # imports ROS: only where messages are used
+    broadcasts_pose: bool = False                     # the sim node also puts the link's pose on /tf
 
 
 def _pack_odometry(r: OdometryReading, values: list[float], names: list[str]) -> None:
@@ -113,7 +115,7 @@ def _contact_messages() -> MessageSide:
 
 SENSOR_KINDS: dict[str, SensorKind] = {kind.name: kind for kind in (
     SensorKind("p3d", OdometryReading, "odometry", lambda world, sensor: world.read_odometry(sensor),
-               _pack_odometry, _unpack_odometry, _odometry_messages),
+               _pack_odometry, _unpack_odometry, _odometry_messages, broadcasts_pose=True),
     SensorKind("imu", ImuReading, "imu", lambda world, sensor: world.read_imu(sensor), _pack_imu, _unpack_imu,
                _imu_messages),
     SensorKind("contact", ContactReading, "contacts", lambda world, sensor: world.read_contact(sensor),
