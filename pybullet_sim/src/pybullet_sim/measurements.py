@@ -37,7 +37,8 @@ class Measurements:
         return self._time_ns / 1e9
 
     def _link_pose_twist(self, link: str) -> tuple[Any, Any, Any, Any]:
-        """A link's (position, orientation, linear, angular velocity): URDF frame pose, centre-of-mass velocity."""
+        """A link's (position, orientation, linear, angular velocity) in the world, as PyBullet gives them: a
+        child link's URDF frame pose and centre-of-mass velocity, the base's centre of mass."""
         index, cid = self._link_index[link], self._cid
         if index == -1:
             position, orientation = p.getBasePositionAndOrientation(self._body, physicsClientId=cid)
