@@ -11,7 +11,7 @@ from sensor_msgs.msg import JointState
 
 from pybullet_sim import messages
 from pybullet_sim.client import CommandPublisher, SensorSubscriber, SimConnection, SimConnectionError
-from pybullet_sim.readings import unpack_readings
+from pybullet_sim.sensors import unpack_readings
 from pybullet_sim.srv import StepRequest
 
 WHEEL_CONTROLLER = "inertia_wheel_roll_joint_velocity_controller"

@@ -17,7 +17,7 @@ from sensor_msgs.msg import Imu, JointState
 from gazebo_msgs.msg import ContactsState
 from pybullet_sim import messages
 from pybullet_sim.client import SensorSubscriber, SimConnection, SimConnectionError
-from pybullet_sim.readings import unpack_readings
+from pybullet_sim.sensors import unpack_readings
 
 TIMEOUT = 10.0
 TOPICS = {"joint_states": ("/monoped/joint_states", JointState), "odometry": ("/odom", Odometry),

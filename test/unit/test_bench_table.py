@@ -62,3 +62,48 @@ def test_the_lockstep_bound_is_two_for_equal_steps_and_lower_the_wider_they_spre
     # half the steps take 1 ms, half 3 ms: the slower of two takes 3 ms with probability 3/4, mean 2 ms
     assert bench.lockstep_speedup_bound([0.001, 0.003] * 50) == pytest.approx(2 * 2.0 / 2.5)
     assert bench.lockstep_speedup_bound([0.001, 0.003] * 50, n=4) == pytest.approx(4 * 2.0 / (3 - 2 / 16))
+
+
+# -- ./ws bench --markdown: docs/performance.md ----------------------------------------------------
+def page(independent: list[float]) -> list[str]:
+    data = report(len(independent), independent)
+    data.update(machine="AMD EPYC, 2 cores, Linux 6.1, Debian 12.8, Python 3.11.2, pybullet 3.2.7",
+                date="2026-11-25T14:05:00+00:00")
+    return bench.markdown(data, "./ws bench --reps 3 --markdown").splitlines()
+
+
+def test_the_page_says_how_where_and_when_it_was_measured():
+    lines = page([1.9, 1.8, 2.0])
+    assert lines[0] == "# Performance"
+    header = "\n".join(lines[:6])
+    assert "`./ws bench --reps 3 --markdown`" in header and "2026-11-25 14:05 UTC" in header
+    for fact in ("AMD EPYC", "2 cores", "Linux 6.1", "Debian 12.8", "Python 3.11.2", "pybullet 3.2.7"):
+        assert fact in header
+
+
+def test_the_page_has_the_printed_table_rows_that_have_figures(capsys):
+    lines = page([1.9, 1.8, 2.0])
+    rows = [line for line in lines if line.startswith("| ")]
+    assert rows[0] == "| | cube | hopper |"
+    assert "| ROS / direct | 0.70 |  |" in rows
+    assert "| ROS / direct: lowest-highest repetition | 0.62-0.78 |  |" in rows
+    assert not any("DQN" in row for row in rows), "rows without a figure are left out"
+    printed = {line.split("|")[1].strip() for line in table(capsys, report(3, [1.9, 1.8, 2.0]))[4:]
+               if line.startswith("| ")}
+    assert {row.split("|")[1].strip() for row in rows[1:]} <= printed
+
+
+@pytest.mark.parametrize("independent, loaded", [([1.2, 1.3], True), ([1.9], False)])
+def test_the_page_notes_a_loaded_machine(independent, loaded):
+    text = "\n".join(page(independent))
+    assert ("the machine was loaded" in text) == loaded
+    assert ("two independent direct processes ran only" in text) == loaded
+
+
+def test_the_page_ends_with_what_made_lockstep_fast_and_no_history():
+    lines = page([1.9])
+    section = lines[lines.index("## What made lockstep fast"):]
+    bullets = [line for line in section if line.startswith("- ")]
+    assert 5 <= len(bullets) <= 8
+    assert any("SCHED_BATCH" in line for line in section) and any("replay" in line for line in section)
+    assert sum(line.startswith("|---") for line in lines) == 1, "one table: no earlier runs"

@@ -10,7 +10,7 @@ import pytest
 from tf.transformations import euler_from_quaternion, quaternion_from_euler
 
 from hopper_training.hop import HOP, HopParams, MonopedHopEnv
-from hopper_training.monoped_env import CONTROLLERS, JOINT_LIMITS, JOINTS, MONOPED, STAY_UP, MonopedEnv
+from hopper_training.monoped_env import CONTROLLERS, JOINTS, MONOPED, STAY_UP, MonopedEnv
 from hopper_training.params import MonopedParams
 from hopper_training.state import TiltStateKey, TutorialStateKey, monoped_state_key
 from pybullet_sim.readings import ContactPoint, ContactReading, ImuReading, JointStateReading, OdometryReading
@@ -287,7 +287,8 @@ def test_actions_are_clamped_to_the_urdf_limits(joints, action, expected):
 def test_joint_limits_are_the_urdfs():
     joints = {j.get("name"): j.find("limit") for j in ElementTree.parse(MONOPED.urdf_path).getroot().findall("joint")}
     assert [(float(joints[name].get("lower")), float(joints[name].get("upper"))) for name in JOINTS] == \
-        list(JOINT_LIMITS)
+        list(MonopedEnv(backend=FakeBackend(readings()), params=params()).joint_limits) == \
+        [(-1.6, 1.6), (-1.6, 1.6), (-1.6, 0.0)]
 
 
 def test_joint_positions_are_read_by_name_not_by_index():

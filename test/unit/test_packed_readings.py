@@ -1,19 +1,12 @@
-"""pybullet_sim.readings' packed form (the lockstep answer of RosBackend) gives back exactly what it packed.
+"""pybullet_sim.sensors' packed readings (the lockstep answer of RosBackend) gives back exactly what it packed.
 
 One stamp for all: every reading of a snapshot carries the sim time of the joint states."""
 import pytest
 
 from hopper_training.monoped_env import STAY_UP
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
-from pybullet_sim.readings import (
-    ContactPoint,
-    ContactReading,
-    ImuReading,
-    JointStateReading,
-    OdometryReading,
-    pack_readings,
-    unpack_readings,
-)
+from pybullet_sim.readings import ContactPoint, ContactReading, ImuReading, JointStateReading, OdometryReading
+from pybullet_sim.sensors import pack_readings, unpack_readings
 from robot_rl.backends import DirectBackend
 
 JOINTS = JointStateReading(1.25, ("a", "b"), (0.1, -0.2), (1e-300, 3.0), (0.0, -7.5))

@@ -1,6 +1,7 @@
 """Unit tests for pybullet_sim.world.World on the moving cube, and for replayed starts also on the monoped
 (PyBullet DIRECT, no ROS)."""
 import copy
+import inspect
 import math
 
 import pybullet as p
@@ -398,3 +399,60 @@ def test_the_starts_remembered_are_bounded(world):
             start(world, steps=steps)
     replayed = [start(world, steps=steps)[0] for steps in counts]
     assert replayed == [True] * MAX_REMEMBERED_STARTS + [False]
+
+
+# -- 10. every change reaches the remembered starts -----------------------------------------------
+# The World's public methods that change nothing the remembered starts depend on. replay_from_reset asks
+# the memory itself, and close() ends the World. A new public method must be listed here or be marked
+# with the kind of change it makes (pybullet_sim.world's _changes), which tells the memory of it.
+READ_ONLY = {"command", "controller_running", "read_joint_states", "read_sensor", "read_odometry", "read_imu",
+             "read_contact", "link_name", "entity_state", "link_state", "model_state", "link_pose", "render",
+             "aim_gui_camera", "replay_from_reset", "close"}
+
+
+def changing_calls(world):
+    """An example call of every World method marked as changing it, by name."""
+    return {"set_command": lambda: world.set_command(WHEEL, 0.05), "step": lambda: world.step(1),
+            "start_controller": lambda: world.start_controller(WHEEL),
+            "stop_controller": lambda: world.stop_controller(WHEEL),
+            "set_gravity": lambda: world.set_gravity(world.gravity),
+            "set_time_step": lambda: world.set_time_step(world.time_step),
+            "set_solver": lambda: world.set_solver(world.solver),
+            "set_model_state": lambda: world.set_model_state(world.model_state()),
+            "reset_world": world.reset_world, "reset_simulation": world.reset_simulation}
+
+
+def public_methods():
+    return {name for name in dir(World) if not name.startswith("_") and inspect.isfunction(getattr(World, name))}
+
+
+def test_every_public_method_is_read_only_or_marked_as_a_change():
+    marked = {name for name in public_methods() if hasattr(getattr(World, name), "change")}
+    assert public_methods() - marked == READ_ONLY
+    assert not marked & READ_ONLY
+
+
+def test_every_change_notifies_the_remembered_starts_with_its_kind(world, monkeypatch):
+    told = []
+    monkeypatch.setattr(world._starts, "changed", lambda kind, step_count: told.append(kind))
+    calls = changing_calls(world)
+    assert set(calls) == {name for name in public_methods() if hasattr(getattr(World, name), "change")}
+    for name, call in calls.items():
+        told.clear()
+        call()
+        assert getattr(World, name).change in told, name
+
+
+@pytest.mark.parametrize("name, replayed", [
+    ("set_command", True), ("start_controller", True), ("stop_controller", True),  # commands are in the key
+    ("reset_world", True), ("reset_simulation", True),
+    ("step", False), ("set_model_state", False), ("set_gravity", False), ("set_time_step", False),
+    ("set_solver", False)])
+def test_a_change_after_a_reset_keeps_or_voids_the_start(world, name, replayed):
+    for _ in range(3):
+        start(world)
+    world.reset_world()
+    changing_calls(world)[name]()
+    world.start_controller(WHEEL)  # running again, and the start's command
+    command_all(world, 0.05)
+    assert world.replay_from_reset(150) is replayed

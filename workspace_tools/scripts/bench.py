@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """./ws bench: env steps per second of both robots, over ROS in lockstep, in-process, and the
 tutorials' Gazebo-style step, on the real nodes; the scaling of vector envs; a deep agent's training
-over ROS against direct. Prints a table and writes bench_results.json.
+over ROS against direct. Prints a table and writes bench_results.json; --markdown also writes the table
+as docs/performance.md (with the machine, the date and what made lockstep fast).
 
 Every figure is the median of --reps repetitions, each in fresh processes (a new master, a new sim
 node, a new client); within a repetition every configuration runs once, so the ROS and direct runs
@@ -31,9 +32,10 @@ Sections (--sections, default all):
 - gazebo: the tutorials' Gazebo-style step.
 - training: 100 episodes of the cube's `main.launch` training.
 
-The Gazebo-style step is the tutorials': unpause, publish the command, wait running_step of sim
-time (on /clock, throttled to 100 Hz of wall time as gazebo_ros publishes it), pause, read the latest
-sensors. It is measured with the sim at real_time_factor 1 and at 0 (as fast as possible).
+The Gazebo-style step is the tutorials' (robot_rl.backends.GazeboStyleBackend under a normal env): unpause,
+publish the command, wait running_step of sim time (on /clock, throttled to 100 Hz of wall time as
+gazebo_ros publishes it), pause, read the latest sensors. It is measured with the sim at
+real_time_factor 1 and at 0 (as fast as possible).
 """
 from __future__ import annotations
 
@@ -62,6 +64,7 @@ from robot_rl.task import TaskSpec, make_env
 from workspace_tools.processes import Processes, RosMaster, launch_args
 
 SECTIONS = ("lockstep", "scaling", "deep", "gazebo", "training")
+PERFORMANCE_PAGE = Path(__file__).resolve().parents[2] / "docs" / "performance.md"
 SCALING_ENVS = (1, 2, 4)
 
 
@@ -85,7 +88,7 @@ def _params(robot: str, running_step: float) -> TaskParams:
 
 
 # -- workers: each runs in its own process and prints one JSON line -------------------------------
-def _make_env(robot: str, backend: str, running_step: float):
+def _make_env(robot: str, backend: Any, running_step: float):
     return make_env(ROBOTS[robot].task, params=_params(robot, running_step), backend=backend)
 
 
@@ -258,63 +261,22 @@ def worker_deep(robot: str, backend: str, steps: int, running_step: float) -> di
 
 
 def worker_gazebo_style(robot: str, steps: int, running_step: float) -> dict:
-    """The tutorials' step over ROS: unpause, command, wait running_step of sim time, pause, read."""
-    import threading
-
+    """The tutorials' step over ROS (robot_rl.backends.GazeboStyleBackend: unpause, command, wait running_step
+    of sim time on /clock, pause, read the latest sensors), one env, random actions: env steps/s."""
     import numpy as np
     import rospy
-    from nav_msgs.msg import Odometry
-    from rosgraph_msgs.msg import Clock
-    from sensor_msgs.msg import Imu, JointState
 
-    from gazebo_msgs.msg import ContactsState
-    from pybullet_sim import messages
-    from pybullet_sim.client import CommandPublisher, SensorSubscriber
-    from robot_rl.backends import Readings
+    from robot_rl.backends import GazeboStyleBackend
 
     rospy.init_node("bench_gazebo_style_client")
-    env = _make_env(robot, "ros", running_step).unwrapped  # for its action mapping and observation
-    backend, sim, config = env.backend, env.backend.sim, env.backend.config
-    # The tutorials' robot classes: a publisher per controller, a subscriber per sensor, read the latest.
-    commands = {c.name: CommandPublisher(config.command_topic(c)) for c in config.controllers}
-    kinds = {"p3d": (Odometry, messages.odometry_reading), "imu": (Imu, messages.imu_reading),
-             "contact": (ContactsState, messages.contact_reading)}
-    joints = SensorSubscriber(config.joint_states_topic, JointState, messages.joint_state_reading)
-    sensors: dict[str, SensorSubscriber[Any]] = {s.name: SensorSubscriber(s.topic, *kinds[s.type])
-                                                 for s in config.sensors}
-    for publisher in commands.values():
-        publisher.wait_for_subscriber(10.0)
-    for subscriber in (joints, *sensors.values()):
-        subscriber.wait_for_connection(10.0)
-    clock = {"now": rospy.Time(0)}
-    changed = threading.Condition()
-
-    def on_clock(msg):
-        with changed:
-            clock["now"] = msg.clock
-            changed.notify_all()
-    rospy.Subscriber("/clock", Clock, on_clock, tcp_nodelay=True)
+    env = _make_env(robot, GazeboStyleBackend(ROBOTS[robot].task.robot), running_step)
     rng = np.random.default_rng(0)
     env.reset(seed=0)
-    period = rospy.Duration.from_sec(env.running_step)
     start = time.perf_counter()
     for _ in range(steps):
-        with changed:
-            target = clock["now"] + period
-        sim.unpause()
-        env._apply_action(int(rng.integers(env.action_space.n)), env.readings)
-        for name, value in backend.take_commands().items():  # published, as the tutorials' robot classes do
-            commands[name].publish(value)
-
-        def reached(target: rospy.Time = target) -> bool:
-            return clock["now"] >= target
-        with changed:
-            if not changed.wait_for(reached, 10.0):
-                raise RuntimeError("/clock did not advance by running_step within 10 s")
-        sim.pause()
-        readings = Readings(joints.latest, {name: s.latest for name, s in sensors.items()})  # type: ignore[arg-type,misc]
-        env.readings = readings
-        env._observe(readings)
+        _, _, terminated, truncated, _ = env.step(int(rng.integers(env.action_space.n)))
+        if terminated or truncated:
+            env.reset()
     elapsed = time.perf_counter() - start
     env.close()
     return {"steps_per_s": steps / elapsed}
@@ -372,8 +334,10 @@ def _machine() -> str:
 
     cpu = next((line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
                 if line.startswith("model name")), platform.processor())
-    return (f"{cpu}, {os.cpu_count()} cores, {platform.platform()}, Python {platform.python_version()}, "
-            f"pybullet {version('pybullet')}")
+    debian = Path("/etc/debian_version")
+    system = f"Debian {debian.read_text().strip()}" if debian.exists() else platform.platform()
+    return (f"{cpu}, {os.cpu_count()} cores, Linux {platform.release()}, {system}, Python "
+            f"{platform.python_version()}, pybullet {version('pybullet')}")
 
 
 def _log(message: str) -> None:
@@ -489,20 +453,21 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
     return report
 
 
-def _row(report: dict, label: str, value: Any, fmt: str) -> None:
-    cells = []
+def _row(rows: list[list[str]], report: dict, label: str, value: Any, fmt: str) -> None:
+    """Append the row `label` with each robot's formatted value ("" where the report lacks it)."""
+    cells = [label]
     for robot in ROBOTS:
         try:
             cells.append(fmt.format(value(report[robot])))
         except KeyError:
             cells.append("")
-    print(f"| {label:52} | " + " | ".join(f"{cell:>9}" for cell in cells) + " |")
+    rows.append(cells)
 
 
-def _range_row(report: dict, label: str, key: str, scale: float = 1.0) -> None:
+def _range_row(rows: list[list[str]], report: dict, label: str, key: str, scale: float = 1.0) -> None:
     """The lowest and highest repetition of a ratio, when there was more than one."""
     if report["repetitions"] > 1:
-        _row(report, f"  {label}: lowest-highest repetition",
+        _row(rows, report, f"  {label}: lowest-highest repetition",
              lambda r: "{:.2f}-{:.2f}".format(*(scale * f(r["per_repetition"][key]) for f in (min, max))), "{}")
 
 
@@ -517,59 +482,115 @@ def ceiling_warnings(report: dict) -> list[str]:
     return lines
 
 
+def table_rows(report: dict) -> list[list[str]]:
+    """The table's rows: a label, then each robot's cell ("" where the report lacks the figure)."""
+    rows: list[list[str]] = []
+    _row(rows, report, "running_step (s)", lambda r: r["running_step"], "{:g}")
+    _row(rows, report, "one env over ROS (lockstep), env steps/s", lambda r: r["ros_lockstep_steps_per_s"], "{:.0f}")
+    _row(rows, report, "one env direct (in-process), env steps/s", lambda r: r["direct_steps_per_s"], "{:.0f}")
+    _row(rows, report, "ROS / direct", lambda r: r["ratio_ros_to_direct"], "{:.2f}")
+    _range_row(rows, report, "ROS / direct", "ratio")
+    _row(rows, report, "ROS lockstep x real time", lambda r: r["ros_lockstep_real_time_factor"], "{:.1f}")
+    for backend, part, label in (("direct", "physics", "direct: physics (World.step)"),
+                                 ("direct", "sensors_and_task", "direct: sensors, task env"),
+                                 ("ros", "client", "ROS: client (task env, calls)"),
+                                 ("ros", "sim_node", "ROS: sim node (physics, service)")):
+        _row(rows, report, f"CPU us/env step, {label}", lambda r, b=backend, p=part: r["cpu_us_per_step"][b][p],
+             "{:.0f}")
+    for backend in ("ros", "direct"):
+        _row(rows, report, f"N = 2 lockstep speedup bound, {backend} step times",
+             lambda r, backend=backend: r["lockstep_speedup_bound"][backend]["2"], "{:.2f}")
+        _range_row(rows, report, "bound", f"{backend}_lockstep_bound_2")
+    for backend in ("ros", "direct"):
+        for n in SCALING_ENVS:
+            _row(rows, report, f"vector env, {backend}, N = {n}, env steps/s",
+                 lambda r, backend=backend, n=n: r["scaling"][backend]["steps_per_s"][str(n)], "{:.0f}")
+        for n in SCALING_ENVS:
+            _row(rows, report, f"vector env, {backend}, N = {n}, CPU ms per env step",
+                 lambda r, backend=backend, n=n: r["scaling"][backend]["cpu_ms_per_step"][str(n)], "{:.2f}")
+        for n in SCALING_ENVS[1:]:
+            _row(rows, report, f"vector env, {backend}, N = {n}: speedup over N = 1",
+                 lambda r, backend=backend, n=n: r["scaling"][backend]["speedup"][str(n)], "{:.2f}")
+            _range_row(rows, report, "speedup", f"{backend}_efficiency_{n}", scale=n)
+            _row(rows, report, f"vector env, {backend}, N = {n}: parallel efficiency",
+                 lambda r, backend=backend, n=n: r["scaling"][backend]["parallel_efficiency"][str(n)], "{:.2f}")
+    for n in (1, 2):
+        _row(rows, report, f"tabular Q-learning over ROS, N = {n}, env steps/s",
+             lambda r, n=n: r["scaling"]["qlearn_ros"]["steps_per_s"][str(n)], "{:.0f}")
+    _row(rows, report, "tabular Q-learning over ROS, N = 2: speedup",
+         lambda r: r["scaling"]["qlearn_ros"]["speedup"]["2"], "{:.2f}")
+    _range_row(rows, report, "speedup", "qlearn_speedup_2")
+    _row(rows, report, "2 independent direct processes: speedup over 1",
+         lambda r: r["scaling"]["independent_direct_processes_speedup"]["2"], "{:.2f}")
+    _range_row(rows, report, "speedup", "independent_speedup_2")
+    _row(rows, report, "DQN learning over ROS, env steps/s", lambda r: r["dqn"]["ros_steps_per_s"], "{:.0f}")
+    _row(rows, report, "DQN learning direct, env steps/s", lambda r: r["dqn"]["direct_steps_per_s"], "{:.0f}")
+    _row(rows, report, "DQN: ROS / direct", lambda r: r["dqn"]["ratio_ros_to_direct"], "{:.2f}")
+    _range_row(rows, report, "DQN: ROS / direct", "deep_ratio")
+    _row(rows, report, "Gazebo-style step at RTF 1, steps/s", lambda r: r["gazebo_style_rtf1_steps_per_s"], "{:.1f}")
+    _row(rows, report, "Gazebo-style step at max speed, steps/s", lambda r: r["gazebo_style_max_speed_steps_per_s"],
+         "{:.1f}")
+    return rows
+
+
 def print_table(report: dict) -> None:
     print(f"\n{report['machine']}\n{report['date']}, median of {report['repetitions']} repetitions, load average "
           f"{report['load_average_at_end']:.2f} at the end\n")
     print(f"| {'':52} | " + " | ".join(f"{robot:>9}" for robot in ROBOTS) + " |")
     print(f"|{'-' * 54}|" + "|".join("-" * 10 + ":" for _ in ROBOTS) + "|")
-    _row(report, "running_step (s)", lambda r: r["running_step"], "{:g}")
-    _row(report, "one env over ROS (lockstep), env steps/s", lambda r: r["ros_lockstep_steps_per_s"], "{:.0f}")
-    _row(report, "one env direct (in-process), env steps/s", lambda r: r["direct_steps_per_s"], "{:.0f}")
-    _row(report, "ROS / direct", lambda r: r["ratio_ros_to_direct"], "{:.2f}")
-    _range_row(report, "ROS / direct", "ratio")
-    _row(report, "ROS lockstep x real time", lambda r: r["ros_lockstep_real_time_factor"], "{:.1f}")
-    for backend, part, label in (("direct", "physics", "direct: physics (World.step)"),
-                                 ("direct", "sensors_and_task", "direct: sensors, task env"),
-                                 ("ros", "client", "ROS: client (task env, calls)"),
-                                 ("ros", "sim_node", "ROS: sim node (physics, service)")):
-        _row(report, f"CPU us/env step, {label}", lambda r, b=backend, p=part: r["cpu_us_per_step"][b][p], "{:.0f}")
-    for backend in ("ros", "direct"):
-        _row(report, f"N = 2 lockstep speedup bound, {backend} step times",
-             lambda r, backend=backend: r["lockstep_speedup_bound"][backend]["2"], "{:.2f}")
-        _range_row(report, "bound", f"{backend}_lockstep_bound_2")
-    for backend in ("ros", "direct"):
-        for n in SCALING_ENVS:
-            _row(report, f"vector env, {backend}, N = {n}, env steps/s",
-                 lambda r, backend=backend, n=n: r["scaling"][backend]["steps_per_s"][str(n)], "{:.0f}")
-        for n in SCALING_ENVS:
-            _row(report, f"vector env, {backend}, N = {n}, CPU ms per env step",
-                 lambda r, backend=backend, n=n: r["scaling"][backend]["cpu_ms_per_step"][str(n)], "{:.2f}")
-        for n in SCALING_ENVS[1:]:
-            _row(report, f"vector env, {backend}, N = {n}: speedup over N = 1",
-                 lambda r, backend=backend, n=n: r["scaling"][backend]["speedup"][str(n)], "{:.2f}")
-            _range_row(report, "speedup", f"{backend}_efficiency_{n}", scale=n)
-            _row(report, f"vector env, {backend}, N = {n}: parallel efficiency",
-                 lambda r, backend=backend, n=n: r["scaling"][backend]["parallel_efficiency"][str(n)], "{:.2f}")
-    for n in (1, 2):
-        _row(report, f"tabular Q-learning over ROS, N = {n}, env steps/s",
-             lambda r, n=n: r["scaling"]["qlearn_ros"]["steps_per_s"][str(n)], "{:.0f}")
-    _row(report, "tabular Q-learning over ROS, N = 2: speedup", lambda r: r["scaling"]["qlearn_ros"]["speedup"]["2"],
-         "{:.2f}")
-    _range_row(report, "speedup", "qlearn_speedup_2")
-    _row(report, "2 independent direct processes: speedup over 1",
-         lambda r: r["scaling"]["independent_direct_processes_speedup"]["2"], "{:.2f}")
-    _range_row(report, "speedup", "independent_speedup_2")
-    _row(report, "DQN learning over ROS, env steps/s", lambda r: r["dqn"]["ros_steps_per_s"], "{:.0f}")
-    _row(report, "DQN learning direct, env steps/s", lambda r: r["dqn"]["direct_steps_per_s"], "{:.0f}")
-    _row(report, "DQN: ROS / direct", lambda r: r["dqn"]["ratio_ros_to_direct"], "{:.2f}")
-    _range_row(report, "DQN: ROS / direct", "deep_ratio")
-    _row(report, "Gazebo-style step at RTF 1, steps/s", lambda r: r["gazebo_style_rtf1_steps_per_s"], "{:.1f}")
-    _row(report, "Gazebo-style step at max speed, steps/s", lambda r: r["gazebo_style_max_speed_steps_per_s"],
-         "{:.1f}")
+    for label, *cells in table_rows(report):
+        print(f"| {label:52} | " + " | ".join(f"{cell:>9}" for cell in cells) + " |")
     if "cube_100_episodes_wall_s" in report:
         print(f"cube: 100 training episodes over ROS in {report['cube_100_episodes_wall_s']:.1f} s")
     for line in ceiling_warnings(report):
         print(f"\nnote: {line}")
+
+
+LOCKSTEP_FAST = """\
+- An env step over ROS is one call of `/pybullet_sim/step_packed` on a persistent service connection: it
+  carries the commands and answers with the readings, so no topic round trip is waited for.
+- The answer is every sensor's values packed as numbers (`pybullet_sim/PackedReadings`), in a service type
+  with nothing else in it: no message per sensor to build, serialise and parse.
+- The sim node publishes synchronously (`queue_size=None`), builds a sensor message only for a topic with
+  a subscriber, and throttles `/clock` to 100 Hz of wall time as gazebo_ros does.
+- Sensors are read without numpy on the hot path, training runs no robot_state_publisher, and the PID
+  loop makes no per-step lookups.
+- The first physics steps after a reset are replayed from memory once the same start has been seen
+  (`World.replay_from_reset`), bit for bit the stepped ones: the cube's landing after each reset costs
+  microseconds instead of about 2.5 env steps.
+- Vector env workers, and the master and sim node each starts, run in Linux's `SCHED_BATCH` class, whose
+  wake-ups never preempt: the parent writes every worker its action before any worker takes its CPU.
+- What is left over ROS is rospy's call (about 0.1 ms a step) and the sim node's own work around the
+  physics; the machines of this pool differ by up to 2x, so compare ratios within one run.
+"""
+
+
+def markdown(report: dict, command: str) -> str:
+    """docs/performance.md from a report: how and where it was measured, the table (rows with a figure),
+    a note when the machine was loaded, and what made lockstep fast."""
+    date = datetime.datetime.fromisoformat(report["date"]).astimezone(datetime.UTC)
+    reps = report["repetitions"]
+    lines = ["# Performance", "", f"Written by `{command}` on {date:%Y-%m-%d %H:%M} UTC.", "",
+             f"Machine: {report['machine']}; load average {report['load_average_at_end']:.2f} at the end.", "",
+             f"Every figure is the median of {reps} repetition{'s' if reps > 1 else ''}, each in fresh processes (a "
+             f"new master, sim node and client), with random actions and episode resets included. Regenerate this "
+             f"page with `./ws bench --markdown`.", "",
+             "| | " + " | ".join(ROBOTS) + " |", "|---|" + "---:|" * len(ROBOTS)]
+    lines += ["| " + " | ".join([label.strip(), *cells]) + " |"
+              for label, *cells in table_rows(report) if any(cells)]
+    if "cube_100_episodes_wall_s" in report:
+        lines += ["", f"100 episodes of cube training over ROS took {report['cube_100_episodes_wall_s']:.1f} s."]
+    warnings = ceiling_warnings(report)
+    if warnings:
+        lines += ["", "Note: the machine was loaded during this run, so its figures are lower than on two free "
+                      "cores:", *(f"- {line}" for line in warnings)]
+    elif "scaling" not in report.get("sections", ["scaling"]):
+        lines += ["", "Note: this run had no scaling section, whose two independent processes tell whether the "
+                      "machine had two free cores."]
+    lines += ["", "## What made lockstep fast", "", LOCKSTEP_FAST]
+    return "\n".join(lines)
+
+
 
 
 def _running_step(text: str) -> tuple[str, float]:
@@ -614,13 +635,19 @@ def main(argv) -> int:
                         help="measure ROBOT at this control period instead of its config's (e.g. hopper=0.02)")
     parser.add_argument("--sections", type=_sections, default=set(SECTIONS),
                         help=f"comma-separated, of {', '.join(SECTIONS)} (default: all)")
+    parser.add_argument("--markdown", nargs="?", type=Path, const=PERFORMANCE_PAGE, metavar="PATH",
+                        help=f"also write the table as a page (default: {PERFORMANCE_PAGE})")
     args = parser.parse_args(argv)
     if args.reps < 1:
         parser.error("--reps must be >= 1")
     running_steps = {robot: spec.task.default_params().running_step for robot, spec in ROBOTS.items()}
     running_steps.update(dict(args.running_step))
-    print_table(orchestrate(args.reps, args.output, running_steps, args.sections))
+    report = orchestrate(args.reps, args.output, running_steps, args.sections)
+    print_table(report)
     print(f"\nwritten: {args.output}")
+    if args.markdown:
+        args.markdown.write_text(markdown(report, " ".join(["./ws bench", *argv])))
+        print(f"written: {args.markdown}")
     return 0
 
 

@@ -44,6 +44,7 @@ leaves the ground (the tutorial kept the last value), and joint targets stay ins
 """
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any, ClassVar
 
@@ -60,7 +61,6 @@ from .state import monoped_state_key
 
 CONTROLLERS = ("haa_joint_position_controller", "hfe_joint_position_controller", "kfe_joint_position_controller")
 JOINTS = ("haa_joint", "hfe_joint", "kfe_joint")
-JOINT_LIMITS = ((-1.6, 1.6), (-1.6, 1.6), (-1.6, 0.0))  # the URDF's, in JOINTS order
 ODOMETRY_SENSOR = "p3d_base_controller"
 IMU_SENSOR = "gazebo_ros_imu_controller"
 CONTACT_SENSOR = "lowerleg_contactsensor_sensor"
@@ -104,6 +104,11 @@ def contact_force(readings: Readings) -> float:
 class MonopedEnv(RobotEnv[MonopedParams]):
     task: ClassVar[TaskSpec[Any]] = STAY_UP
 
+    @functools.cached_property
+    def joint_limits(self) -> tuple[tuple[float, float], ...]:
+        """(lower, upper) of haa, hfe and kfe: the URDF's."""
+        return self.task.robot.joint_limits(JOINTS)
+
     def _spaces(self) -> tuple[spaces.Discrete, spaces.Box]:
         high = np.array([np.inf, math.pi, math.pi / 2, math.pi, np.inf, math.pi, math.pi, math.pi, np.inf, np.inf],
                         dtype=np.float32)
@@ -121,7 +126,7 @@ class MonopedEnv(RobotEnv[MonopedParams]):
     def _apply_action(self, action: int, readings: Readings) -> None:
         targets = joint_positions(readings)
         joint, direction = divmod(action, 2)
-        low, high = JOINT_LIMITS[joint]
+        low, high = self.joint_limits[joint]
         targets[joint] = min(max(targets[joint] + self.params.joint_increment_value * (1 - 2 * direction), low), high)
         for controller, target in zip(CONTROLLERS, targets):
             self.backend.set_command(controller, target)

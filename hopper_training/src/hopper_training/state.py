@@ -23,13 +23,16 @@ class TutorialStateKey:
     """The tutorial's state string: each of the 8 first observations binned by numpy.linspace(min, max, 10).
 
     Ranges as in seed 001's MonopedState: distance +/-(max_height - min_height), roll and pitch
-    +/-max_incl, yaw +/-2 pi, contact force [0, 2 desired_force], haa and hfe [-1.6, 1.6], kfe [-1.6, 0]."""
+    +/-max_incl, yaw +/-2 pi, contact force [0, 2 desired_force], and the joints' URDF limits (haa and
+    hfe [-1.6, 1.6], kfe [-1.6, 0])."""
 
     def __init__(self, params: MonopedParams):
+        from .monoped_env import JOINTS, MONOPED  # which imports this module
         span, incl = params.max_height - params.min_height, params.max_incl
+        joint_limits = MONOPED.joint_limits(JOINTS)
         self.discretiser = Discretiser(
-            low=[-span, -incl, -incl, -2 * math.pi, 0.0, -1.6, -1.6, -1.6],
-            high=[span, incl, incl, 2 * math.pi, 2 * params.desired_force, 1.6, 1.6, 0.0],
+            low=[-span, -incl, -incl, -2 * math.pi, 0.0, *(low for low, _ in joint_limits)],
+            high=[span, incl, incl, 2 * math.pi, 2 * params.desired_force, *(high for _, high in joint_limits)],
             bins=TUTORIAL_DIVISIONS, indices=range(8))
 
     def key(self, observation: np.ndarray) -> str:

@@ -33,6 +33,7 @@ Q-learning state key makes the states); action 1 really is -fixed (one tutorial 
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -48,7 +49,7 @@ from .state import CubeStateKey
 
 WHEEL_CONTROLLER = "inertia_wheel_roll_joint_velocity_controller"
 ODOMETRY_SENSOR = "p3d_base_controller"
-WHEEL_SPEED_LIMIT = 1000.0  # rad/s, the URDF velocity limit of inertia_wheel_roll_joint (the sim enforces it)
+WHEEL_JOINT = "inertia_wheel_roll_joint"
 SUCCESS_DISTANCE = 0.5      # m along +y: an episode that ends this far along has succeeded
 
 MOVING_CUBE = RobotSpec(description_package="moving_cube_description", urdf="urdf/moving_cube.urdf",
@@ -72,8 +73,13 @@ ONE_DISK_WALK = TaskSpec(
 class MovingCubeOneDiskWalkEnv(RobotEnv[CubeParams]):
     task = ONE_DISK_WALK
 
+    @functools.cached_property
+    def wheel_speed_limit(self) -> float:
+        """rad/s: the URDF velocity limit of the wheel's joint (the sim enforces it)."""
+        return self.task.robot.joints()[WHEEL_JOINT].velocity
+
     def _spaces(self) -> tuple[spaces.Discrete, spaces.Box]:
-        high = np.array([WHEEL_SPEED_LIMIT, np.inf, math.pi, math.pi / 2, np.inf, math.pi], dtype=np.float32)
+        high = np.array([self.wheel_speed_limit, np.inf, math.pi, math.pi / 2, np.inf, math.pi], dtype=np.float32)
         return spaces.Discrete(N_ACTIONS), spaces.Box(-high, high, dtype=np.float32)
 
     def _settle_time(self) -> float:
@@ -98,7 +104,8 @@ class MovingCubeOneDiskWalkEnv(RobotEnv[CubeParams]):
     def _observe(self, readings: Readings) -> np.ndarray:
         odom = readings.odometry(ODOMETRY_SENSOR)
         roll, pitch, yaw = euler_from_quaternion(odom.orientation)
-        wheel_speed = min(max(readings.joints.velocity[0], -WHEEL_SPEED_LIMIT), WHEEL_SPEED_LIMIT)
+        limit = self.wheel_speed_limit
+        wheel_speed = min(max(readings.joints.velocity[0], -limit), limit)
         return np.array([wheel_speed, odom.position[1] - self.params.init_cube_pose.y, roll, pitch,
                          odom.linear_velocity[1], yaw], dtype=np.float32)
 

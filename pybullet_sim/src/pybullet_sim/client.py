@@ -277,7 +277,7 @@ class SimConnection:
 
     def step_packed(self, steps: int, controllers: list[str], values: list[float]) -> PackedReadings:
         """step_with() through ~step_packed: returns every sensor's values instead of its message (a
-        PackedReadings, see pybullet_sim.readings.unpack_readings; values[0] is the new sim time)."""
+        PackedReadings, see pybullet_sim.sensors.unpack_readings; values[0] is the new sim time)."""
         request = self._packed_request
         request.steps, request.controllers, request.commands = steps, controllers, values
         return self._call(STEP_PACKED_SERVICE, self._step_packed, request).packed

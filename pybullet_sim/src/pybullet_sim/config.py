@@ -6,19 +6,18 @@ here is robot specific: robots differ only by URDF and this YAML.
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
+from .sensors import SENSOR_KINDS
+from .validation import ConfigError, param
+
+__all__ = ["ConfigError", "RobotConfig", "parse_robot_config"]
+
 JOINT_STATE_CONTROLLER = "joint_state_controller/JointStateController"
 VELOCITY_CONTROLLER = "effort_controllers/JointVelocityController"
 POSITION_CONTROLLER = "effort_controllers/JointPositionController"
-SENSOR_TYPES = ("p3d", "imu", "contact")
-
-
-class ConfigError(ValueError):
-    """A parameter of the simulator is missing, mistyped or out of range; the message names it."""
 
 
 @dataclass(frozen=True)
@@ -88,102 +87,76 @@ class RobotConfig:
         return f"{self.robot_namespace}/{controller.name}/command"
 
 
-def _number(params: Mapping[str, Any], key: str, where: str, default: float | None = None,
-            minimum: float | None = None, exclusive_minimum: bool = False) -> float:
-    if key not in params:
-        if default is None:
-            raise ConfigError(f"missing parameter {where}/{key}")
-        return float(default)
-    value = params[key]
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ConfigError(f"parameter {where}/{key} must be a finite number, got {value!r}")
-    if minimum is not None and (value < minimum or (exclusive_minimum and value == minimum)):
-        relation = ">" if exclusive_minimum else ">="
-        raise ConfigError(f"parameter {where}/{key} must be {relation} {minimum}, got {value!r}")
-    return float(value)
-
-
-def _text(params: Mapping[str, Any], key: str, where: str, default: str | None = None) -> str:
-    value = params.get(key, default)
-    if value is None:
-        raise ConfigError(f"missing parameter {where}/{key}")
-    if not isinstance(value, str) or not value:
-        raise ConfigError(f"parameter {where}/{key} must be a non-empty string, got {value!r}")
-    return value
-
-
-def _mapping(params: Mapping[str, Any], key: str, where: str) -> dict[str, Any]:
-    value = params.get(key, {})
-    if not isinstance(value, dict):
-        raise ConfigError(f"parameter {where}/{key} must be a dictionary, got {value!r}")
-    return value
-
-
 def parse_robot_config(params: Mapping[str, Any], where: str = "~") -> RobotConfig:
     """Build a RobotConfig from the sim node's private parameters (`where` prefixes error messages)."""
-    namespace = _text(params, "robot_namespace", where)
+    top = f"{where}/"
+    namespace = param(params, "robot_namespace", str, top)
     if not namespace.startswith("/"):
         raise ConfigError(f"parameter {where}/robot_namespace must be absolute (start with '/'), got {namespace!r}")
     namespace = namespace.rstrip("/")
-    spawn = _mapping(params, "spawn", where)
-    spawn_where = f"{where}/spawn"
-    xyz = tuple(_number(spawn, k, spawn_where, 0.0) for k in ("x", "y", "z"))
-    rpy = tuple(_number(spawn, k, spawn_where, 0.0) for k in ("roll", "pitch", "yaw"))
+    spawn = param(params, "spawn", dict, top, {})
+    spawn_where = f"{where}/spawn/"
+    xyz = tuple(param(spawn, k, float, spawn_where, 0.0) for k in ("x", "y", "z"))
+    rpy = tuple(param(spawn, k, float, spawn_where, 0.0) for k in ("roll", "pitch", "yaw"))
 
     controllers = []
     joint_state_rate = joint_state_controller = None
-    for name, entry in sorted(_mapping(params, "controllers", where).items()):
+    for name, entry in sorted(param(params, "controllers", dict, top, {}).items()):
         c_where = f"{where}/controllers/{name}"
         if not isinstance(entry, dict):
             raise ConfigError(f"parameter {c_where} must be a dictionary")
-        ctype = _text(entry, "type", c_where)
+        ctype = param(entry, "type", str, c_where + "/")
         if ctype == JOINT_STATE_CONTROLLER:
             if joint_state_controller is not None:
                 raise ConfigError(f"parameter {where}/controllers has two {JOINT_STATE_CONTROLLER}s: "
                                   f"{joint_state_controller} and {name}")
-            joint_state_rate = _number(entry, "publish_rate", c_where, minimum=0.0, exclusive_minimum=True)
+            joint_state_rate = param(entry, "publish_rate", float, c_where + "/", minimum=0.0,
+                                     exclusive_minimum=True)
             joint_state_controller = name
             continue
         if ctype not in (VELOCITY_CONTROLLER, POSITION_CONTROLLER):
             raise ConfigError(f"parameter {c_where}/type: unsupported controller type {ctype!r} "
                               f"(supported: {JOINT_STATE_CONTROLLER}, {VELOCITY_CONTROLLER}, {POSITION_CONTROLLER})")
-        pid = _mapping(entry, "pid", c_where)
-        p_where = f"{c_where}/pid"
-        gains = PidGains(p=_number(pid, "p", p_where), i=_number(pid, "i", p_where, 0.0),
-                         d=_number(pid, "d", p_where, 0.0), i_clamp=_number(pid, "i_clamp", p_where, 0.0, minimum=0.0))
-        joint = _text(entry, "joint", c_where)
+        pid = param(entry, "pid", dict, c_where + "/", {})
+        p_where = f"{c_where}/pid/"
+        gains = PidGains(p=param(pid, "p", float, p_where), i=param(pid, "i", float, p_where, 0.0),
+                         d=param(pid, "d", float, p_where, 0.0),
+                         i_clamp=param(pid, "i_clamp", float, p_where, 0.0, minimum=0.0))
+        joint = param(entry, "joint", str, c_where + "/")
         controllers.append(JointControllerConfig(name=name, type=ctype, joint=joint, pid=gains))
     if joint_state_rate is None or joint_state_controller is None:
         raise ConfigError(f"parameter {where}/controllers needs a {JOINT_STATE_CONTROLLER} with a publish_rate")
 
     sensors = []
-    for name, entry in sorted(_mapping(params, "sensors", where).items()):
+    for name, entry in sorted(param(params, "sensors", dict, top, {}).items()):
         s_where = f"{where}/sensors/{name}"
         if not isinstance(entry, dict):
             raise ConfigError(f"parameter {s_where} must be a dictionary")
-        stype = _text(entry, "type", s_where)
-        if stype not in SENSOR_TYPES:
+        stype = param(entry, "type", str, s_where + "/")
+        if stype not in SENSOR_KINDS:
             raise ConfigError(f"parameter {s_where}/type: unsupported sensor type {stype!r} "
-                              f"(supported: {', '.join(SENSOR_TYPES)})")
-        topic = _text(entry, "topic", s_where)
+                              f"(supported: {', '.join(SENSOR_KINDS)})")
+        topic = param(entry, "topic", str, s_where + "/")
         if not topic.startswith("/"):
             raise ConfigError(f"parameter {s_where}/topic must be absolute (start with '/'), got {topic!r}")
         sensors.append(SensorConfig(
-            name=name, type=stype, link=_text(entry, "link", s_where), topic=topic,
-            frame_id=_text(entry, "frame_id", s_where),
-            update_rate=_number(entry, "update_rate", s_where, minimum=0.0, exclusive_minimum=True),
-            gaussian_noise=_number(entry, "gaussian_noise", s_where, 0.0, minimum=0.0)))
-    camera = _mapping(params, "camera", where)
+            name=name, type=stype, link=param(entry, "link", str, s_where + "/"), topic=topic,
+            frame_id=param(entry, "frame_id", str, s_where + "/"),
+            update_rate=param(entry, "update_rate", float, s_where + "/", minimum=0.0, exclusive_minimum=True),
+            gaussian_noise=param(entry, "gaussian_noise", float, s_where + "/", 0.0, minimum=0.0)))
+    camera = param(params, "camera", dict, top, {})
     c_where, default = f"{where}/camera", CameraConfig()
     known = [f.name for f in fields(CameraConfig)]
     unknown = sorted(set(camera) - set(known))
     if unknown:
         raise ConfigError(f"parameter {c_where} has unknown keys {unknown} (known: {', '.join(known)})")
     camera_config = CameraConfig(
-        distance=_number(camera, "distance", c_where, default.distance, minimum=0.0, exclusive_minimum=True),
-        yaw=_number(camera, "yaw", c_where, default.yaw), pitch=_number(camera, "pitch", c_where, default.pitch),
-        z_offset=_number(camera, "z_offset", c_where, default.z_offset),
-        fov=_number(camera, "fov", c_where, default.fov, minimum=0.0, exclusive_minimum=True))
+        distance=param(camera, "distance", float, c_where + "/", default.distance, minimum=0.0,
+                       exclusive_minimum=True),
+        yaw=param(camera, "yaw", float, c_where + "/", default.yaw),
+        pitch=param(camera, "pitch", float, c_where + "/", default.pitch),
+        z_offset=param(camera, "z_offset", float, c_where + "/", default.z_offset),
+        fov=param(camera, "fov", float, c_where + "/", default.fov, minimum=0.0, exclusive_minimum=True))
     if camera_config.fov >= 180.0:
         raise ConfigError(f"parameter {c_where}/fov must be < 180 degrees, got {camera_config.fov!r}")
     return RobotConfig(robot_namespace=namespace, spawn_xyz=xyz, spawn_rpy=rpy, joint_state_rate=joint_state_rate,

@@ -15,7 +15,8 @@ Services, with Gazebo's names and types: /gazebo/{pause,unpause}_physics, reset_
 (std_srvs/Empty), /gazebo/{get,set}_physics_properties, get_world_properties, {get,set}_model_state,
 get_link_state (gazebo_msgs; see physics_properties for what PyBullet honours), and ros_control's
 <robot_namespace>/controller_manager/{switch,list,load,unload}_controller(s) (controller_manager_msgs;
-see controller_manager). Bad requests get success false (ok false) and change nothing.
+see controller_manager), the last two groups served by pybullet_sim.gazebo_services. Bad requests get
+success false (ok false) and change nothing.
 
 Private params: ~time_step (0.001 s), ~real_time_factor (1.0), ~paused (false), ~gui (false), ~seed (0),
 ~command_timeout (2.0 s: how long ~step waits for the commands its caller announced),
@@ -33,38 +34,11 @@ from contextlib import contextmanager
 
 import rospy
 import tf2_ros
-from geometry_msgs.msg import Vector3
-from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import Imu, JointState
+from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Empty, EmptyResponse
 
-from controller_manager_msgs.srv import (
-    ListControllers,
-    ListControllersResponse,
-    LoadController,
-    LoadControllerResponse,
-    SwitchController,
-    SwitchControllerResponse,
-    UnloadController,
-    UnloadControllerResponse,
-)
-from gazebo_msgs.msg import ContactsState, LinkState
-from gazebo_msgs.srv import (
-    GetLinkState,
-    GetLinkStateResponse,
-    GetModelState,
-    GetModelStateResponse,
-    GetPhysicsProperties,
-    GetPhysicsPropertiesResponse,
-    GetWorldProperties,
-    GetWorldPropertiesResponse,
-    SetModelState,
-    SetModelStateResponse,
-    SetPhysicsProperties,
-    SetPhysicsPropertiesResponse,
-)
 from pybullet_sim.msg import PackedReadings, Readings
 from pybullet_sim.srv import (
     Render,
@@ -78,36 +52,20 @@ from pybullet_sim.srv import (
     StepResponse,
 )
 
-from . import messages, physics_properties
+from . import messages
 from .client import RENDER_SERVICE, RESET_SERVICE, STEP_PACKED_SERVICE, STEP_SERVICE, synchronous_publisher
 from .config import ConfigError, SensorConfig, parse_robot_config
 from .controller_manager import ControllerManager
-from .physics_properties import OdeConfig, PhysicsProperties
-from .readings import JointStateReading, pack_readings
+from .gazebo_services import GazeboServices
+from .readings import JointStateReading
+from .sensors import SENSOR_KINDS, pack_readings
 from .shutdown import shutdown_on_signals, shutting_down
-from .world import UrdfError, World, absolute_state, relative_state
+from .validation import param
+from .world import SolverSettings, UrdfError, World
 
-_SENSOR_MESSAGES = {"p3d": (Odometry, messages.odometry_msg), "imu": (Imu, messages.imu_msg),
-                    "contact": (ContactsState, messages.contacts_msg)}
-READINGS_FIELDS = {"p3d": "odometry", "imu": "imu", "contact": "contacts"}  # pybullet_sim/Readings, per sensor type
-WORLD_FRAMES = ("", "world", "map", "/map")  # the names gazebo_ros takes for the world frame
 STEP_BATCH = 10  # physics steps between two looks at the clock during a lockstep call
 STEP_SLICE = 0.02  # s of wall time a lockstep call holds the World before it lets other services in
 SHUTTING_DOWN = "the sim node is shutting down"
-
-
-def _param(params: dict, key: str, kind, default, minimum=None):
-    """A private param of a basic type, with a ConfigError naming it when it is mistyped."""
-    value = params.get(key, default)
-    if kind is float and isinstance(value, int) and not isinstance(value, bool):
-        value = float(value)
-    if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
-        raise ConfigError(f"parameter ~{key} must be {kind.__name__}, got {value!r}")
-    if kind is float and not math.isfinite(value):
-        raise ConfigError(f"parameter ~{key} must be finite, got {value!r}")
-    if minimum is not None and value < minimum:
-        raise ConfigError(f"parameter ~{key} must be >= {minimum}, got {value!r}")
-    return value
 
 
 class _Schedule:
@@ -130,13 +88,13 @@ class _Schedule:
 class SimNode:
     def __init__(self):
         params = rospy.get_param("~", {})
-        time_step = _param(params, "time_step", float, 0.001, minimum=1e-6)
-        self.real_time_factor = _param(params, "real_time_factor", float, 1.0, minimum=0.0)
-        self._paused = _param(params, "paused", bool, False)
-        self.command_timeout = _param(params, "command_timeout", float, 2.0, minimum=0.0)
-        self.pub_clock_period = 1.0 / _param(params, "pub_clock_frequency", float, 100.0, minimum=1e-3)
-        seed = _param(params, "seed", int, 0)
-        gui = _param(params, "gui", bool, False)
+        time_step = param(params, "time_step", float, "~", 0.001, minimum=1e-6)
+        self.real_time_factor = param(params, "real_time_factor", float, "~", 1.0, minimum=0.0)
+        self._paused = param(params, "paused", bool, "~", False)
+        self.command_timeout = param(params, "command_timeout", float, "~", 2.0, minimum=0.0)
+        self.pub_clock_period = 1.0 / param(params, "pub_clock_frequency", float, "~", 100.0, minimum=1e-3)
+        seed = param(params, "seed", int, "~", 0)
+        gui = param(params, "gui", bool, "~", False)
         description_param = rospy.resolve_name("robot_description")
         if not rospy.has_param(description_param):
             raise ConfigError(f"parameter {description_param} is missing: load the robot's URDF into it "
@@ -148,9 +106,7 @@ class SimNode:
         self.world = World(urdf, self.config, time_step=time_step, seed=seed, gui=gui,
                            urdf_source=f"parameter {description_param}")
         self.controllers = ControllerManager(self.config, self.world)
-        self._gui = gui
-        self._ode = OdeConfig()  # the last accepted ode_config, for get_physics_properties
-        self._said_not_honoured = set()  # ode_config fields already logged as not honoured
+        self.gui = gui
 
         # One lock guards the World, with two conditions on it: `_run_state` wakes the main loop on
         # unpause, `_commands_arrived` wakes a step call waiting for its announced commands. Threads
@@ -167,8 +123,9 @@ class SimNode:
         # Synchronous publishers: in lockstep each message is awaited at once (see synchronous_publisher).
         self._clock_pub = synchronous_publisher("/clock", Clock)
         self._joint_pub = synchronous_publisher(self.config.joint_states_topic, JointState)
-        self._sensor_pubs = [(sensor, synchronous_publisher(sensor.topic, _SENSOR_MESSAGES[sensor.type][0]),
-                              _SENSOR_MESSAGES[sensor.type][1]) for sensor in self.config.sensors]
+        sides = [SENSOR_KINDS[sensor.type].messages() for sensor in self.config.sensors]
+        self._sensor_pubs = [(sensor, synchronous_publisher(sensor.topic, side.type), side.to_message)
+                             for sensor, side in zip(self.config.sensors, sides)]
         self._tf = tf2_ros.TransformBroadcaster()
         self._last_clock_wall = -math.inf
         self._pace_origin = None  # (wall, sim) at which the free-running loop's pacing restarted
@@ -187,35 +144,39 @@ class SimNode:
         rospy.Service(STEP_SERVICE, Step, self._handle_step)
         rospy.Service(STEP_PACKED_SERVICE, StepPacked, self._handle_step_packed)
         rospy.Service(RESET_SERVICE, Reset, self._handle_reset)
-        for name, srv_type, handler in (
-                ("get_physics_properties", GetPhysicsProperties, self._handle_get_physics),
-                ("set_physics_properties", SetPhysicsProperties, self._handle_set_physics),
-                ("get_world_properties", GetWorldProperties, self._handle_get_world),
-                ("get_model_state", GetModelState, self._handle_get_model_state),
-                ("set_model_state", SetModelState, self._handle_set_model_state),
-                ("get_link_state", GetLinkState, self._handle_get_link_state)):
-            rospy.Service(f"/gazebo/{name}", srv_type, handler)
-        manager = f"{self.config.robot_namespace}/controller_manager"
-        rospy.Service(f"{manager}/switch_controller", SwitchController, self._handle_switch_controller)
-        rospy.Service(f"{manager}/list_controllers", ListControllers, self._handle_list_controllers)
-        rospy.Service(f"{manager}/load_controller", LoadController, self._handle_load_controller)
-        rospy.Service(f"{manager}/unload_controller", UnloadController, self._handle_unload_controller)
+        self.gazebo_services = GazeboServices(self)
         rospy.Service(RENDER_SERVICE, Render, self._handle_render)
         rospy.on_shutdown(self._wake_main_loop)
         with self._lock:
-            self._publish_all(self._stamp(), force_clock=True)
+            self._publish_all(self.stamp(), force_clock=True)
         rospy.loginfo("pybullet_sim: %s loaded, time step %.4f s, %s, real_time_factor %.2f",
                       self.world.robot_name, time_step, "paused" if self._paused else "running",
                       self.real_time_factor)
 
     # -- helpers --------------------------------------------------------------------------------
+    @property
+    def paused(self) -> bool:
+        return self._paused
+
+    def set_physics(self, time_step: float, gravity, solver: SolverSettings, real_time_factor: float) -> None:
+        """Apply checked physics properties (Gazebo's set_physics_properties) from the next step on."""
+        with self.exclusive():
+            world = self.world
+            if time_step != world.time_step:
+                world.set_time_step(time_step)
+                self._make_schedules()
+            world.set_gravity(gravity)
+            world.set_solver(solver)
+            self.real_time_factor = real_time_factor
+            self._pace_origin = None
+
     def _wake_main_loop(self) -> None:
         """On shutdown: the paused main loop ends now, not after its next timed wait."""
         with self._lock:
             self._run_state.notify_all()
 
     @contextmanager
-    def _exclusive(self):
+    def exclusive(self):
         """Hold the World lock from a callback thread, asking the free-running loop to step aside. Once the
         node shuts down (its topics closing, then the World), a ServiceException says so: rospy answers the
         caller with it and logs it at debug level, where any other error would be logged with a traceback."""
@@ -237,7 +198,7 @@ class SimNode:
             with self._waiters_lock:
                 self._waiters -= 1
 
-    def _stamp(self) -> rospy.Time:
+    def stamp(self) -> rospy.Time:
         nanoseconds = self.world.time_ns
         return rospy.Time(nanoseconds // 1_000_000_000, nanoseconds % 1_000_000_000)
 
@@ -263,7 +224,7 @@ class SimNode:
         if message_wanted or publisher.get_num_connections():
             msg = to_msg(reading, stamp)
             publisher.publish(msg)
-        if sensor.type == "p3d" and self._tf.pub_tf.get_num_connections():
+        if SENSOR_KINDS[sensor.type].broadcasts_pose and self._tf.pub_tf.get_num_connections():
             position, orientation = self.world.link_pose(sensor.link)
             self._tf.sendTransform(messages.transform_msg(sensor.frame_id, sensor.link, position, orientation, stamp))
         return reading, msg
@@ -291,13 +252,13 @@ class SimNode:
             return None
         readings = Readings(joint_states=joint_msg)
         for sensor, _, msg in published:
-            getattr(readings, READINGS_FIELDS[sensor.type]).append(msg)
+            getattr(readings, SENSOR_KINDS[sensor.type].readings_field).append(msg)
         return readings
 
     def _publish_due(self):
         """While running: publish what is due at the current step, each stream at its own rate."""
         count = self.world.step_count
-        stamp = self._stamp()
+        stamp = self.stamp()
         self._publish_clock(stamp)
         if self._joint_schedule.due(count):
             self._publish_joint_states(stamp, False)
@@ -352,7 +313,7 @@ class SimNode:
     def _on_command(self, msg: Float64, topic: str):
         caller = msg._connection_header.get("callerid", "") if hasattr(msg, "_connection_header") else ""
         try:
-            with self._exclusive():
+            with self.exclusive():
                 self._command(self._command_topics[topic], msg.data, caller, topic)
                 key = (topic, caller)
                 self._received[key] = self._received.get(key, 0) + 1
@@ -361,12 +322,12 @@ class SimNode:
             pass
 
     def _handle_pause(self, _request):
-        with self._exclusive():
+        with self.exclusive():
             self._paused = True
         return EmptyResponse()
 
     def _handle_unpause(self, _request):
-        with self._exclusive():
+        with self.exclusive():
             if self._paused:
                 # Streams resume one period after the last lockstep step published every sensor.
                 self._restart_schedules()
@@ -375,16 +336,16 @@ class SimNode:
         return EmptyResponse()
 
     def _handle_reset_simulation(self, _request):
-        with self._exclusive():
+        with self.exclusive():
             self.world.reset_simulation()
             self._restart_schedules()
-            self._publish_all(self._stamp(), force_clock=True)
+            self._publish_all(self.stamp(), force_clock=True)
         return EmptyResponse()
 
     def _handle_reset_world(self, _request):
-        with self._exclusive():
+        with self.exclusive():
             self.world.reset_world()
-            self._publish_all(self._stamp(), force_clock=True)
+            self._publish_all(self.stamp(), force_clock=True)
         return EmptyResponse()
 
     def _check_step(self, service: str, steps: int, controllers: Sequence[str], commands: Sequence[float]) -> None:
@@ -416,7 +377,7 @@ class SimNode:
         for controller, value in zip(controllers, commands):
             self._command(controller, value, caller, service)
         self._step_world(service, steps)
-        return self._stamp()
+        return self.stamp()
 
     def _handle_step(self, request):
         caller = request._connection_header.get("callerid", "")
@@ -428,7 +389,7 @@ class SimNode:
             raise rospy.ServiceException(f"{STEP_SERVICE}: no controller listens on {', '.join(unknown)} "
                                          f"(command topics: {', '.join(sorted(self._command_topics))})")
         announced = list(zip(request.command_topics, request.command_counts))
-        with self._exclusive():
+        with self.exclusive():
             stamp = self._lockstep(STEP_SERVICE, request.steps, request.controllers, request.commands, caller,
                                    announced)
             if not request.return_readings:
@@ -438,156 +399,29 @@ class SimNode:
 
     def _handle_step_packed(self, request):
         self._check_step(STEP_PACKED_SERVICE, request.steps, request.controllers, request.commands)
-        with self._exclusive():
+        with self.exclusive():
             stamp = self._lockstep(STEP_PACKED_SERVICE, request.steps, request.controllers, request.commands,
                                    request._connection_header.get("callerid", ""), [])
             return StepPackedResponse(self._publish_all(stamp, answer="packed"))
 
     def _handle_reset(self, request):
-        with self._exclusive():
+        with self.exclusive():
             if request.restart_time:
                 self.world.reset_simulation()
                 self._restart_schedules()
             else:
                 self.world.reset_world()
             if request.packed:
-                return ResetResponse(packed=self._publish_all(self._stamp(), force_clock=True, answer="packed"))
-            return ResetResponse(readings=self._publish_all(self._stamp(), force_clock=True, answer="messages"))
-
-    # -- Gazebo's physics, world and model services ---------------------------------------------
-    def _handle_get_physics(self, _request):
-        with self._exclusive():
-            world = self.world
-            return GetPhysicsPropertiesResponse(
-                time_step=world.time_step, pause=self._paused, max_update_rate=self.real_time_factor / world.time_step,
-                gravity=Vector3(*world.gravity), ode_config=messages.ode_physics_msg(self._ode), success=True,
-                status_message="GetPhysicsProperties: got properties")
-
-    def _handle_set_physics(self, request):
-        gravity = request.gravity
-        wanted = PhysicsProperties(request.time_step, request.max_update_rate, (gravity.x, gravity.y, gravity.z),
-                                   messages.ode_config(request.ode_config))
-        problem = physics_properties.check(wanted)
-        if problem:
-            message = f"SetPhysicsProperties refused, nothing changed: {problem}"
-            return SetPhysicsPropertiesResponse(success=False, status_message=message)
-        with self._exclusive():
-            world = self.world
-            if wanted.time_step != world.time_step:
-                world.set_time_step(wanted.time_step)
-                self._make_schedules()
-            world.set_gravity(wanted.gravity)
-            world.set_solver(physics_properties.solver_settings(wanted.ode))
-            self._ode = wanted.ode
-            self.real_time_factor = physics_properties.real_time_factor(wanted.max_update_rate, wanted.time_step)
-            self._pace_origin = None
-        not_honoured = physics_properties.not_honoured(wanted.ode)
-        new = [reason for name, reason in not_honoured.items() if name not in self._said_not_honoured]
-        if new:
-            self._said_not_honoured.update(not_honoured)
-            rospy.logwarn("pybullet_sim: /gazebo/set_physics_properties: PyBullet cannot honour ode_config %s; "
-                          "the rest is applied (said once per setting)", "; ".join(new))
-        status = "physics engine updated"
-        if not_honoured:
-            status += f"; PyBullet cannot honour ode_config {', '.join(not_honoured)} (kept, without effect)"
-        return SetPhysicsPropertiesResponse(success=True, status_message=status)
-
-    def _handle_get_world(self, _request):
-        with self._exclusive():
-            return GetWorldPropertiesResponse(sim_time=self.world.time, model_names=[self.world.robot_name],
-                                              rendering_enabled=self._gui, success=True,
-                                              status_message="GetWorldProperties: got properties")
-
-    def _frame(self, name: str):
-        """The world-frame state of a Gazebo reference frame name, None for the world itself (ValueError if unknown)."""
-        return None if name in WORLD_FRAMES else self.world.entity_state(name)
-
-    def _handle_get_model_state(self, request):
-        response = GetModelStateResponse()
-        if request.model_name != self.world.robot_name:
-            response.status_message = (f"GetModelState: model [{request.model_name}] does not exist (models: "
-                                       f"{self.world.robot_name})")
-            return response
-        with self._exclusive():
-            try:
-                frame = self._frame(request.relative_entity_name)
-            except ValueError as error:
-                response.status_message = f"GetModelState: relative_entity_name not found: {error}"
-                return response
-            state = self.world.model_state()
-            response.header.stamp = self._stamp()  # rospy numbers header.seq itself
-        response.header.frame_id = request.relative_entity_name
-        state = state if frame is None else relative_state(state, frame)
-        response.pose, response.twist = messages.pose_twist_msgs(state)
-        response.success, response.status_message = True, "GetModelState: got properties"
-        return response
-
-    def _handle_set_model_state(self, request):
-        wanted = request.model_state
-        if wanted.model_name != self.world.robot_name:
-            message = f"SetModelState: model [{wanted.model_name}] does not exist (models: {self.world.robot_name})"
-            return SetModelStateResponse(success=False, status_message=message)
-        with self._exclusive():
-            try:
-                frame = self._frame(wanted.reference_frame)
-                state = messages.frame_state(wanted.pose, wanted.twist)
-                self.world.set_model_state(state if frame is None else absolute_state(state, frame))
-            except ValueError as error:
-                return SetModelStateResponse(success=False,
-                                             status_message=f"SetModelState refused, nothing changed: {error}")
-        return SetModelStateResponse(success=True, status_message="SetModelState: set model state done")
-
-    def _handle_get_link_state(self, request):
-        with self._exclusive():
-            try:
-                state = self.world.link_state(self.world.link_name(request.link_name))
-                frame = self._frame(request.reference_frame)
-            except ValueError as error:
-                return GetLinkStateResponse(success=False, status_message=f"GetLinkState: {error}")
-        pose, twist = messages.pose_twist_msgs(state if frame is None else relative_state(state, frame))
-        return GetLinkStateResponse(link_state=LinkState(link_name=request.link_name, pose=pose, twist=twist,
-                                                         reference_frame=request.reference_frame),
-                                    success=True, status_message="GetLinkState: got state")
-
-    # -- ros_control's controller manager -------------------------------------------------------
-    def _answer(self, service: str, result) -> bool:
-        """Log a controller manager result as ros_control does (errors as errors), return its ok."""
-        if not result.ok:
-            rospy.logerr("pybullet_sim: %s/controller_manager/%s: %s", self.config.robot_namespace, service,
-                         result.message)
-        elif result.message:
-            rospy.logwarn("pybullet_sim: %s/controller_manager/%s: %s", self.config.robot_namespace, service,
-                          result.message)
-        return result.ok
-
-    def _handle_switch_controller(self, request):
-        with self._exclusive():
-            result = self.controllers.switch(request.start_controllers, request.stop_controllers, request.strictness,
-                                             request.start_asap)
-        return SwitchControllerResponse(ok=self._answer("switch_controller", result))
-
-    def _handle_list_controllers(self, _request):
-        with self._exclusive():
-            return ListControllersResponse(controller=[messages.controller_state_msg(info)
-                                                       for info in self.controllers.infos()])
-
-    def _handle_load_controller(self, request):
-        with self._exclusive():
-            result = self.controllers.load(request.name)
-        return LoadControllerResponse(ok=self._answer("load_controller", result))
-
-    def _handle_unload_controller(self, request):
-        with self._exclusive():
-            result = self.controllers.unload(request.name)
-        return UnloadControllerResponse(ok=self._answer("unload_controller", result))
+                return ResetResponse(packed=self._publish_all(self.stamp(), force_clock=True, answer="packed"))
+            return ResetResponse(readings=self._publish_all(self.stamp(), force_clock=True, answer="messages"))
 
     def _handle_render(self, request):
-        with self._exclusive():
+        with self.exclusive():
             try:
                 rgb = self.world.render(request.width, request.height)
             except ValueError as error:
                 raise rospy.ServiceException(f"{RENDER_SERVICE}: {error}") from None
-            return RenderResponse(image=messages.image_msg(rgb, self._stamp()))
+            return RenderResponse(image=messages.image_msg(rgb, self.stamp()))
 
     # -- main loop ------------------------------------------------------------------------------
     def spin(self):

@@ -8,6 +8,8 @@ exactly N physics steps and answers with every sensor's values at the new time (
 names; the sim also publishes them on the sensors' topics for any subscriber).
 The direct backend makes the same calls on an in-process World and reads every sensor once per
 call, as the sim node publishes them once, so the same seed and actions give the same readings.
+GazeboStyleBackend steps as the tutorials step Gazebo (unpause, publish, wait on /clock, pause, read
+the latest messages), for comparison in ./ws bench.
 """
 from __future__ import annotations
 
@@ -21,7 +23,8 @@ import numpy as np
 import yaml
 
 from pybullet_sim.config import RobotConfig, parse_robot_config
-from pybullet_sim.readings import ContactReading, ImuReading, JointStateReading, OdometryReading, unpack_readings
+from pybullet_sim.readings import ContactReading, ImuReading, JointStateReading, OdometryReading
+from pybullet_sim.sensors import unpack_readings
 
 if TYPE_CHECKING:
     from .task import RobotSpec
@@ -210,12 +213,6 @@ class RosBackend(Backend):
                            f"{', '.join(sorted(self._controllers))})")
         self._pending[controller] = value
 
-    def take_commands(self) -> dict[str, float]:
-        """The commands set since the last step, which the next step would send; forgets them (for a client
-        that publishes them on the command topics itself, as the tutorials' Gazebo-style step does)."""
-        pending, self._pending = self._pending, {}
-        return pending
-
     def step(self, physics_steps: int) -> Readings:
         pending = self._pending
         self._pending = {}
@@ -228,6 +225,77 @@ class RosBackend(Backend):
         if self._was_running:
             self.sim.unpause()
         self.sim.close()
+
+
+class GazeboStyleBackend(RosBackend):
+    """The robot behind a running sim node, stepped as The Construct's tutorials step Gazebo.
+
+    A step unpauses the sim, publishes the commands set since the last step on the controllers' command
+    topics, waits until /clock has advanced by the step's sim time (gazebo_ros throttles /clock to
+    ~pub_clock_frequency of wall time, so the wait overshoots), pauses, and returns the latest message of
+    every sensor's topic: readings of whatever time the sim published last, as in the tutorials. For
+    comparing that step with the lockstep one (./ws bench); resets, render and close are RosBackend's."""
+
+    def __init__(self, robot: RobotSpec, timeout: float = 10.0, sim_node: str = SIM_NODE):
+        import threading
+
+        import rospy
+        from rosgraph_msgs.msg import Clock
+        from sensor_msgs.msg import JointState
+
+        from pybullet_sim import messages
+        from pybullet_sim.client import CommandPublisher, SensorSubscriber
+        from pybullet_sim.sensors import SENSOR_KINDS
+
+        super().__init__(robot, timeout, sim_node)
+        config, hint = self.config, f"is the sim node running? (e.g. {robot.sim_launch})"
+        self._publishers = {c.name: CommandPublisher(config.command_topic(c), hint) for c in config.controllers}
+        self._joints = SensorSubscriber(config.joint_states_topic, JointState, messages.joint_state_reading, hint)
+        sides = {sensor.name: SENSOR_KINDS[sensor.type].messages() for sensor in config.sensors}
+        self._sensors = {s.name: SensorSubscriber(s.topic, sides[s.name].type, sides[s.name].to_reading, hint)
+                         for s in config.sensors}
+        for publisher in self._publishers.values():
+            publisher.wait_for_subscriber(timeout)
+        for subscriber in (self._joints, *self._sensors.values()):
+            subscriber.wait_for_connection(timeout)
+        self._clock = rospy.Time(0)
+        self._clock_changed = threading.Condition()
+        self._clock_subscriber = rospy.Subscriber("/clock", Clock, self._on_clock, tcp_nodelay=True)
+
+    def _on_clock(self, msg: Any) -> None:
+        with self._clock_changed:
+            self._clock = msg.clock
+            self._clock_changed.notify_all()
+
+    def step(self, physics_steps: int) -> Readings:
+        import rospy
+
+        from pybullet_sim.client import SimConnectionError
+        with self._clock_changed:
+            target = self._clock + rospy.Duration.from_sec(physics_steps * self.time_step)
+        self.sim.unpause()
+        pending, self._pending = self._pending, {}
+        for controller, value in pending.items():
+            self._publishers[controller].publish(value)
+        with self._clock_changed:
+            if not self._clock_changed.wait_for(lambda: self._clock >= target, self.timeout):
+                raise SimConnectionError(f"/clock did not advance by {physics_steps} physics steps within "
+                                         f"{self.timeout} s")
+        self.sim.pause()
+        return Readings(self._latest(self._joints), {name: self._latest(s) for name, s in self._sensors.items()})
+
+    def _latest(self, subscriber: Any) -> Any:
+        """The subscriber's latest reading; the first one waited for (bounded) if none has arrived yet."""
+        latest = subscriber.latest
+        return subscriber.wait_newer(0, self.timeout) if latest is None else latest
+
+    def close(self) -> None:
+        self._clock_subscriber.unregister()
+        for publisher in self._publishers.values():
+            publisher.unregister()
+        for subscriber in (self._joints, *self._sensors.values()):
+            subscriber.unregister()
+        super().close()
 
 
 def make_backend(kind: Any, robot: RobotSpec, seed: int | None = None, timeout: float = 10.0,

@@ -3,18 +3,20 @@
 Each robot package exports its TaskSpec(s) and registers them (`register_tasks`) when imported.
 A spec names its gymnasium env (id, entry point, max_episode_steps), its frozen params dataclass
 and default YAML (`<package>/config/<name>.yaml`), its Q-learning state key, its results folder,
-its reward topics, the robot (URDF and sim config, found through ROS package paths), and the
-per-episode metrics that training logs and evaluation reports.
+its reward topics, the robot (URDF and sim config, found through ROS package paths; its joint limits
+read from the URDF), and the per-episode metrics that training logs and evaluation reports.
 """
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Generic, Protocol, TypeVar
 
 import gymnasium
+
+from pybullet_sim.urdf import UrdfJoint, parse_urdf_joints
 
 from .params import ParamError, TaskParams, load_yaml_file
 
@@ -61,6 +63,20 @@ class RobotSpec:
     @property
     def sim_config_path(self) -> Path:
         return package_path(self.description_package) / self.sim_config
+
+    def joints(self) -> Mapping[str, UrdfJoint]:
+        """The URDF's joints by name, with their <limit>s (what the sim clamps commands to)."""
+        return _urdf_joints(self.urdf_path)
+
+    def joint_limits(self, names: Sequence[str]) -> tuple[tuple[float, float], ...]:
+        """(lower, upper) position limits of the named joints, from the URDF."""
+        joints = self.joints()
+        return tuple((joints[name].lower, joints[name].upper) for name in names)
+
+
+@functools.cache
+def _urdf_joints(path: Path) -> Mapping[str, UrdfJoint]:
+    return parse_urdf_joints(path.read_text(), str(path))[1]
 
 
 @dataclass(frozen=True)
