@@ -52,6 +52,7 @@ from .task import TaskSpec, make_env
 START_TIMEOUT = 60.0   # s for a worker to start its master, its sim node and its env
 REPLY_MARGIN = 30.0    # s a worker may take beyond ros_timeout to answer (a reset with a long settle on a busy machine)
 CLOSE_TIMEOUT = 10.0   # s for a worker to close before SIGTERM, and again before SIGKILL
+PARENT_EXIT_WAIT = 2.0  # s a worker signalled to end waits for its parent's end of the pipe to close
 
 
 class WorkerError(RuntimeError):
@@ -113,6 +114,20 @@ def _raise_system_exit(_signum: int, _frame: Any) -> None:
     raise SystemExit(1)
 
 
+def _parent_died(conn: multiprocessing.connection.Connection, parent: int) -> bool:
+    """Whether the worker's parent has died. Its end of the pipe closes as it dies; the kernel may send
+    the worker its death signal before then, and, when the parent had threads, before it reparents the
+    worker (the thread that started it died first), so wait a moment for the pipe to say so."""
+    if os.getppid() != parent:
+        return True
+    try:
+        if conn.poll(PARENT_EXIT_WAIT):
+            conn.recv()
+    except (EOFError, OSError):
+        return True
+    return os.getppid() != parent
+
+
 def _worker(index: int, recipe: WorkerRecipe, conn: multiprocessing.connection.Connection) -> None:
     """A worker's life: make the env, then answer one reply per command until "close" or the pipe closes."""
     parent = os.getppid()
@@ -121,6 +136,7 @@ def _worker(index: int, recipe: WorkerRecipe, conn: multiprocessing.connection.C
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _raise_system_exit)  # ends the worker through the finally below
     env, sim = None, None
+    parent_gone, closing = False, False  # whether the pipe closed without a "close"; whether "close" came
     try:
         env, sim = _worker_env(index, recipe)
         info = {"pid": os.getpid(), "master_uri": sim.uri if sim else None,
@@ -130,6 +146,7 @@ def _worker(index: int, recipe: WorkerRecipe, conn: multiprocessing.connection.C
             try:
                 command, data = conn.recv()
             except EOFError:  # the parent is gone
+                parent_gone = True
                 break
             if command == "step":
                 observation, reward, terminated, truncated, info = env.step(data)
@@ -146,6 +163,7 @@ def _worker(index: int, recipe: WorkerRecipe, conn: multiprocessing.connection.C
                 name, args, kwargs = data
                 conn.send(("ok", getattr(env.unwrapped, name)(*args, **kwargs)))
             elif command == "close":
+                closing = True
                 conn.send(("ok", None))
                 break
             else:
@@ -161,6 +179,8 @@ def _worker(index: int, recipe: WorkerRecipe, conn: multiprocessing.connection.C
         except OSError:
             pass
     finally:
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)  # a later SIGTERM must not cut the clean-up short
+        orphaned = parent_gone or (not closing and _parent_died(conn, parent))
         try:
             if env is not None:
                 env.close()
@@ -171,7 +191,7 @@ def _worker(index: int, recipe: WorkerRecipe, conn: multiprocessing.connection.C
             rospy.signal_shutdown("the vector env closes this worker")  # unregisters while the master is up
             sim.close()
         conn.close()
-        if recipe.own_log_dir and os.getppid() != parent:  # the parent died (kill -9): nobody else cleans up
+        if recipe.own_log_dir and orphaned:  # nobody else will remove the parent's temporary folder
             shutil.rmtree(recipe.log_dir / f"worker{index}", ignore_errors=True)
             try:
                 os.rmdir(recipe.log_dir)  # the last worker out removes the folder
