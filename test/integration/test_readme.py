@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 import rospkg
 
-from conftest import REPO
+from workspace_tools.paths import REPO
 
 README = (REPO / "README.md").read_text()
 BLOCKS = re.findall(r"^```[a-z]*\n(.*?)^```", README, re.M | re.S)
@@ -74,7 +74,7 @@ def check_command(words: list[str]) -> None:
             if word.startswith("--"):
                 assert word in help_text, f"{words[2]} has no option {word}"
     elif words[0] == "rostest":
-        assert (REPO / "test" / "integration" / words[2]).is_file() and words[1] == "workspace_tests", words
+        assert (REPO / "test" / "rostest" / words[2]).is_file() and words[1] == "workspace_tests", words
 
 
 def test_the_readme_documents_enough_commands_to_check():
