@@ -171,7 +171,7 @@ lint() {
   log "roslaunch-check"
   local launch_file
   for launch_file in pybullet_sim/launch/{cube,hopper}_sim.launch {moving_cube,hopper}_training/launch/main.launch \
-                     moving_cube_training/launch/systems_test.launch test/integration/*.test; do
+                     moving_cube_training/launch/systems_test.launch test/rostest/*.test; do
     python3 /usr/share/roslaunch/scripts/roslaunch-check -o "$STATE/roslaunch-check.xml" "$launch_file" \
       | grep -q "^passed" || die "roslaunch-check: $launch_file has problems (see $STATE/roslaunch-check.xml)"
   done

@@ -5,13 +5,11 @@ from __future__ import annotations
 import os
 import select
 import subprocess
-from pathlib import Path
 
 import pytest
 
-from workspace_tools.processes import Processes, RosMaster, launch_args, stop  # noqa: F401 (used by the tests)
-
-REPO = Path(__file__).resolve().parents[2]
+from workspace_tools.paths import REPO
+from workspace_tools.processes import Processes, RosMaster
 
 
 @pytest.fixture

@@ -9,9 +9,8 @@ from pathlib import Path
 
 import pytest
 
+from workspace_tools.paths import REPO
 from workspace_tools.processes import Processes, RosMaster
-
-from conftest import REPO
 
 # Variables the workspace's own devel space sets; the install space must work without them.
 WORKSPACE_VARIABLES = ("ROS_PACKAGE_PATH", "PYTHONPATH", "CMAKE_PREFIX_PATH", "LD_LIBRARY_PATH", "PKG_CONFIG_PATH",
@@ -77,7 +76,7 @@ def test_run_tests_target_runs_a_rostest(catkin_workspace, tmp_path):
     started = time.monotonic()
     try:
         result = runner.run(in_workspace(workspace, "devel", f"catkin_make -C {workspace} "
-                                         "run_tests_workspace_tests_rostest_integration_cube_lockstep.test"),
+                                         "run_tests_workspace_tests_rostest_rostest_cube_lockstep.test"),
                             timeout=600)
     finally:
         runner.close()

@@ -12,8 +12,8 @@ import pytest
 import yaml
 
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
-
-from conftest import REPO, Processes, RosMaster, launch_args
+from workspace_tools.paths import REPO, ROSTESTS
+from workspace_tools.processes import Processes, RosMaster, launch_args
 
 CONFIG = ONE_DISK_WALK.config_path
 HEADER = "episode,steps,return,epsilon,sim_time,wall_time,y_distance,success"
@@ -185,7 +185,7 @@ def test_a_second_backend_in_one_node_applies_every_command(ros_master):
         except Exception:  # rosgraph.MasterError until the sim registers
             return None
     wait_for(sim_up, 60, "the sim node's step service", interval=0.05)
-    result = ros_master.run(["python", str(Path(__file__).with_name("cube_env_node.py")),
+    result = ros_master.run(["python", str(ROSTESTS / "cube_env_node.py"),
                              "--second-backend-cycles", "1000"], timeout=120)
     assert result.returncode == 0, result.stderr[-3000:]
     misses = json.loads(result.stdout.strip().splitlines()[-1])

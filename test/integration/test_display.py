@@ -6,15 +6,15 @@ import re
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 from PIL import ImageGrab
 
-from conftest import Processes, launch_args
+from workspace_tools.paths import PROGRAMS
+from workspace_tools.processes import Processes, launch_args
 
-HUMAN = Path(__file__).with_name("human_render.py")
+HUMAN = PROGRAMS / "human_render.py"
 # Debian's rviz asks rospack for the media_export package (not packaged in Debian) and says so on every
 # start; nothing else in an rviz log may say error.
 DEBIAN_RVIZ_NOISE = ("[rospack] Error: no such package media_export", "[librospack]: error while executing command")

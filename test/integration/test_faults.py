@@ -19,9 +19,8 @@ import yaml
 
 from hopper_training.monoped_env import STAY_UP
 from moving_cube_training.one_disk_walk import MOVING_CUBE, ONE_DISK_WALK
+from workspace_tools.paths import PROGRAMS, REPO
 from workspace_tools.processes import Processes, RosMaster, free_port, processes_using
-
-from conftest import REPO
 
 TRAIN = ["rosrun", "workspace_tools", "roslaunch_checked.py"]  # what ./ws run starts
 CUBE_TRAINING = [*TRAIN, "moving_cube_training", "main.launch", "video:=false"]
@@ -461,7 +460,7 @@ def test_ctrl_c_stops_with_a_checkpoint_and_an_incomplete_summary_then_resumes(m
 
 def interrupt_while_logging(master: RosMaster, logging: Path) -> int | None:
     """Start logging_node.py, SIGINT it once it logs; its exit code, or None if it did not end within 20 s."""
-    node = master.start([sys.executable, str(Path(__file__).with_name("logging_node.py")), str(logging)],
+    node = master.start([sys.executable, str(PROGRAMS / "logging_node.py"), str(logging)],
                         stdout=subprocess.DEVNULL)
     wait_for(lambda: logging.exists() or node.poll() is not None, 30, "logging_node.py's first log line")
     assert node.poll() is None, f"logging_node.py ended (exit {node.returncode}) before it logged"
@@ -710,7 +709,7 @@ def _socket_inodes(pid: int) -> list[int]:
     return inodes
 
 
-MEMORY_SCRIPT = Path(__file__).with_name("memory_client.py")
+MEMORY_SCRIPT = PROGRAMS / "memory_client.py"
 
 
 def test_memory_stays_flat_over_10000_resets_and_100000_lockstep_steps(master, tmp_path):

@@ -4,16 +4,15 @@ import json
 import math
 import sys
 import time
-from pathlib import Path
 
 import pytest
 import yaml
 
 from hopper_training.monoped_env import STAY_UP
+from workspace_tools.paths import PROGRAMS
+from workspace_tools.processes import launch_args, stop
 
-from conftest import launch_args, stop
-
-RECORDER = Path(__file__).with_name("record_rewards.py")
+RECORDER = PROGRAMS / "record_rewards.py"
 
 TRAINING_TIMEOUT = 240.0  # wall s: 3 episodes of at most 100 lockstep steps, plus roslaunch start-up
 EVALUATE_TIMEOUT = 120.0

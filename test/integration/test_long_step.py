@@ -4,11 +4,11 @@ for hours, pause_physics blocked, and only SIGKILL ended the node)."""
 import json
 import subprocess
 import time
-from pathlib import Path
 
-from conftest import RosMaster, launch_args
+from workspace_tools.paths import PROGRAMS
+from workspace_tools.processes import RosMaster, launch_args
 
-CLIENT = Path(__file__).with_name("long_step_client.py")
+CLIENT = PROGRAMS / "long_step_client.py"
 
 
 def test_a_maximal_step_lets_other_services_in_and_ends_on_sigint(ros_master: RosMaster, tmp_path):

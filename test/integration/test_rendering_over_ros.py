@@ -9,9 +9,10 @@ from pathlib import Path
 
 import pytest
 
-from conftest import launch_args
+from workspace_tools.paths import PROGRAMS
+from workspace_tools.processes import launch_args
 
-SCRIPT = Path(__file__).with_name("render_over_ros.py")
+SCRIPT = PROGRAMS / "render_over_ros.py"
 
 
 @pytest.mark.parametrize("robot, env_id", [("cube", "MovingCubeOneDiskWalk-v0"), ("hopper", "Monoped-v0")])

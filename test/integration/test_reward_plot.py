@@ -10,8 +10,7 @@ import yaml
 from PIL import Image, ImageGrab
 
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
-
-from conftest import launch_args
+from workspace_tools.processes import launch_args
 
 
 def wait_for(condition, timeout: float, what: str):

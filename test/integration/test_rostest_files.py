@@ -1,11 +1,10 @@
-"""Runs every rostest file in this folder (each starts its own master on a free port)."""
-from pathlib import Path
-
+"""Runs every rostest file of test/rostest/ (each starts its own master on a free port)."""
 import pytest
 
-from conftest import REPO, Processes
+from workspace_tools.paths import REPO, ROSTESTS
+from workspace_tools.processes import Processes
 
-TEST_FILES = sorted(Path(__file__).parent.glob("*.test"))
+TEST_FILES = sorted(ROSTESTS.glob("*.test"))
 
 
 @pytest.mark.parametrize("test_file", TEST_FILES, ids=[f.stem for f in TEST_FILES])

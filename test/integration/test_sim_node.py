@@ -1,12 +1,11 @@
 """The sim node against a real master: the same seed gives the same odom stream (bad input: test_faults.py)."""
 import json
-from pathlib import Path
 
 import yaml
 
 from moving_cube_training.one_disk_walk import MOVING_CUBE
-
-from conftest import REPO, RosMaster, launch_args
+from workspace_tools.paths import PROGRAMS, REPO
+from workspace_tools.processes import RosMaster, launch_args
 
 CUBE_URDF = MOVING_CUBE.urdf_path.read_text()
 CUBE_SIM = yaml.safe_load(MOVING_CUBE.sim_config_path.read_text())
@@ -15,7 +14,7 @@ CUBE_SIM = yaml.safe_load(MOVING_CUBE.sim_config_path.read_text())
 def record_odom(master: RosMaster, seed: int) -> list:
     master.start(["roslaunch", "pybullet_sim", "cube_sim.launch",
                   *launch_args(paused="true", real_time_factor=0, seed=seed)])
-    result = master.run(["python", str(Path(__file__).with_name("record_odom.py")), "100"], timeout=120)
+    result = master.run(["python", str(PROGRAMS / "record_odom.py"), "100"], timeout=120)
     assert result.returncode == 0, result.stderr
     return json.loads(result.stdout.strip().splitlines()[-1])
 
@@ -37,7 +36,7 @@ def test_step_and_reset_answer_with_the_messages_they_publish_or_their_packed_va
     master = RosMaster(tmp_path, cwd=REPO)
     try:
         master.start(["roslaunch", "pybullet_sim", "hopper_sim.launch", *launch_args(paused="true")])
-        result = master.run(["python", str(Path(__file__).with_name("readings_client.py"))], timeout=120)
+        result = master.run(["python", str(PROGRAMS / "readings_client.py")], timeout=120)
     finally:
         master.close()
     assert result.returncode == 0, result.stderr

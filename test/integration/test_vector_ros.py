@@ -17,8 +17,8 @@ import yaml
 
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
 from robot_rl.vector import WorkerError, make_vector_env
-
-from conftest import REPO, Processes, RosMaster, launch_args
+from workspace_tools.paths import PROGRAMS, REPO
+from workspace_tools.processes import Processes, RosMaster, launch_args
 
 CONFIG = ONE_DISK_WALK.config_path
 
@@ -105,7 +105,7 @@ def test_every_process_is_gone_after_an_exception_in_a_worker(tmp_path):
 def test_every_process_is_gone_after_sigint_to_the_process_group(tmp_path):
     log = tmp_path / "script.log"
     with open(log, "w") as err:
-        script = subprocess.Popen([sys.executable, str(Path(__file__).with_name("vector_sigint.py"))],
+        script = subprocess.Popen([sys.executable, str(PROGRAMS / "vector_sigint.py")],
                                   stdout=subprocess.PIPE, stderr=err, text=True, start_new_session=True)
     try:
         line = script.stdout.readline()  # bounded below: the script prints once its two workers step

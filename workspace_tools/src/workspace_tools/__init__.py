@@ -1,2 +1,3 @@
 """workspace_tools: what the tests, the benchmark and ./ws need around the workspace (private masters,
-process clean-up, roslaunch with exit codes); not part of the RL library."""
+process clean-up, roslaunch with exit codes, the checkout's paths, Gazebo-style service clients); not part
+of the RL library."""

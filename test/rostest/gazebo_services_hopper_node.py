@@ -3,14 +3,13 @@
 
 The tutorial's MonopedEnv resets with gravity switched off (pause, reset_simulation, gravity 0,
 controllers off/on, init pose, check the sensors, gravity back on, pause). Here our own clients make the
-same calls (gazebo_style.py), and the physics is checked: without gravity the hopper does not fall,
+same calls (workspace_tools.gazebo_style), and the physics is checked: without gravity the hopper does not fall,
 gravity survives both resets, the controller switch restarts the controllers and gates joint_states."""
 import math
 import unittest
 
 import rospy
 import rostest
-from gazebo_style import TUTORIAL_ODE, ControllersConnection, GazeboConnection
 from geometry_msgs.msg import Vector3
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, JointState
@@ -25,6 +24,7 @@ from controller_manager_msgs.srv import (
 from gazebo_msgs.msg import ContactsState, ODEPhysics
 from gazebo_msgs.srv import GetModelState, GetPhysicsProperties, SetPhysicsProperties, SetPhysicsPropertiesRequest
 from pybullet_sim.client import CommandPublisher, SensorSubscriber, SimConnection
+from workspace_tools.gazebo_style import TUTORIAL_ODE, ControllersConnection, GazeboConnection
 
 TIMEOUT = 10.0
 NAMESPACE = "monoped"

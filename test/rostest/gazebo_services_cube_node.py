@@ -3,8 +3,8 @@
 
 The tutorial's cube env (openai_ros RobotGazeboEnv + CubeSingleDiskEnv) constructs a GazeboConnection and a
 ControllersConnection, resets with the controllers switched off and on around reset_simulation, and steps
-by unpause, publish, wait for the wheel speed, pause. Our own clients (gazebo_style.py) do the same here;
-set_model_state must move the cube, a stopped wheel controller must let the wheel coast, and
+by unpause, publish, wait for the wheel speed, pause. Our own clients (workspace_tools.gazebo_style) do the
+same here; set_model_state must move the cube, a stopped wheel controller must let the wheel coast, and
 max_update_rate must set the real-time factor."""
 import math
 import time
@@ -12,7 +12,6 @@ import unittest
 
 import rospy
 import rostest
-from gazebo_style import ControllersConnection, GazeboConnection
 from geometry_msgs.msg import Pose, Twist
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
@@ -22,6 +21,7 @@ from controller_manager_msgs.srv import SwitchController, SwitchControllerReques
 from gazebo_msgs.msg import ModelState
 from gazebo_msgs.srv import GetLinkState, GetModelState, GetPhysicsProperties, GetWorldProperties, SetModelState
 from pybullet_sim.client import CommandPublisher, SensorSubscriber, SimConnection
+from workspace_tools.gazebo_style import ControllersConnection, GazeboConnection
 
 TIMEOUT = 10.0
 CONTROLLERS = ["joint_state_controller", "inertia_wheel_roll_joint_velocity_controller"]

@@ -1,4 +1,6 @@
-"""Our own clients that call the sim's Gazebo and ros_control services the way the tutorials' helpers do.
+"""Our own clients that call the sim's Gazebo and ros_control services the way the tutorials' helpers do,
+for the rostest nodes test/rostest/gazebo_services_*_node.py (here so that catkin's relays of those nodes
+can import it).
 
 GazeboConnection and ControllersConnection of the tutorials (moving_cube_training, my_hopper_training,
 openai_ros) make these calls in this order; these classes make the same calls with the same request
