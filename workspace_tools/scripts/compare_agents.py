@@ -7,10 +7,11 @@ For each seed (the task's `seed` param: Q-learning's RNG, SB3's seed; the sim's 
 ROS with one env, as `./ws run ROBOT agent:=...` trains: the first agent (tabular Q-learning) for the
 task config's nepisodes (or --nepisodes); then the others (DQN, PPO) with max_steps:= the env steps
 that first run took, so all of them see the same number of env steps. Every final policy is evaluated
-greedily (evaluate.py, --episodes episodes, direct backend, seed --eval-seed). Writes DIR/comparison.json (every run), DIR/comparison.md (the
-table: the headline metric of the greedy policy, wall time, env steps/s; mean and range over the seeds)
-and DIR/learning_curves.png (the headline metric per episode, averaged over 50 episodes, against env
-steps; one line per agent, the mean over the seeds, the band their range). The runs stay in
+greedily (evaluate.py, --episodes episodes, direct backend, seed --eval-seed). Writes
+DIR/comparison.json (every run), DIR/comparison.md (the table: the headline metric of the greedy
+policy, wall time, env steps/s; mean and range over the seeds) and DIR/learning_curves.png (the
+headline metric per episode, averaged over 50 episodes, against env steps; one line per agent, the
+mean over the seeds, the band their range). The runs stay in
 DIR/runs/ (training_results layout). Machine and date are in the JSON and the table.
 """
 from __future__ import annotations
