@@ -7,14 +7,14 @@ ended episode down. The envs are not stepped together as a vector env's are, but
 until the replies before it in that order have been taken: the order of every choice and update is
 fixed, so a run repeats. Each episode that starts decays epsilon as the single-env loop does before
 each episode, so epsilon follows the same schedule per episode; training ends when nepisodes episodes
-have ended (the episodes still under way then are dropped). Episodes are logged in the order they
-end, with the same files (episodes.csv, qtable.json, learning_curve.png, summary.json) and one "EP:"
-line per episode that names its env and each env's episode count, written while that env takes its
-next step (before it when a checkpoint is due: the checkpoint holds the table before the next action
-is chosen). A checkpoint holds the Q-table with the steps of the episodes under way at that moment:
-resume continues from it (those episodes start anew), so with N > 1 a resumed run is not bit-for-bit
-an uninterrupted one. When the envs fail or the run is stopped, the Q-table as it is and a summary
-marked incomplete are saved.
+have ended (the episodes still under way then are dropped). The trainer's RunLedger writes the ended
+episodes in the order they end, with the same files as one env's (episodes.csv, qtable.json,
+learning_curve.png, summary.json) and "EP:" lines that name the env and each env's episode count,
+while that env takes its next step (before it when a checkpoint is due: the checkpoint holds the
+table before the next action is chosen). A checkpoint holds the Q-table with the steps of the episodes
+under way at that moment: resume continues from it (those episodes start anew), so with N > 1 a
+resumed run is not bit-for-bit an uninterrupted one. When the envs fail or the run is stopped, the
+Q-table as it is and a summary marked incomplete are saved.
 """
 from __future__ import annotations
 
