@@ -30,6 +30,7 @@ def test_every_agent_has_a_loadable_default_config(name):
     params = agent.load_params()
     if agent.params is None:
         assert params is None and agent.config_path is None
+        assert agent.load_params(Path("/nonexistent.yaml")) is None, "the task's params: no file of its own read"
     else:
         assert isinstance(params, Params) and agent.config_path.name == f"{name}.yaml"
         assert agent.load_params_from(params.to_mapping(), "test") == params

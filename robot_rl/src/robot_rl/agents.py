@@ -76,8 +76,11 @@ class AgentSpec:
     def load_params(self, path: Path | None = None) -> Params | None:
         """The agent's params from `path` (default: config_path); ParamError names the key. May raise
         ModuleNotFoundError when the agent needs requirements-deep.txt and it is not installed."""
-        path = path or self.config_path
-        return None if path is None else self.load_params_from(load_yaml_file(path), str(path))
+        default = self.config_path
+        if default is None:
+            return None
+        path = path or default
+        return self.load_params_from(load_yaml_file(path), str(path))
 
     def load_params_from(self, values: Any, source: str) -> Params | None:
         return None if self.params is None else _resolve(self.params).from_mapping(values, source)
