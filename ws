@@ -5,7 +5,7 @@
 #
 #   ./ws run [cube|hopper] [NAME:=VALUE ...]  set up, then train (roslaunch <robot's package> main.launch);
 #                               rviz:=true also installs rviz (Debian's) and shows the robot in it;
-#                               agent:=dqn|ppo also installs the deep agents (requirements-deep.txt)
+#                               agent:=NAME of a deep agent (robot_rl.agents) also installs requirements-deep.txt
 #   ./ws rviz [cube|hopper] [NAME:=VALUE ...] set up with rviz, then the robot's sim running, seen in rviz
 #   ./ws plot [NAMESPACE] [--output PNG]      a live plot of the reward topics (rqt_plot is not in Debian 12)
 #   ./ws test [PYTEST ARGS]     set up, then the linters and every test (pytest + rostest)
@@ -207,7 +207,8 @@ case "$command" in
     done
     launch="$(launch_of "$robot")"
     setup
-    if printf '%s\n' "$@" | grep -qE '^agent:=(dqn|ppo)$'; then
+    agent="$(printf '%s\n' "$@" | sed -n 's/^agent:=//p' | tail -n 1)"
+    if [ -n "$agent" ] && (enter_environment && python -m robot_rl.agents needs-deep "$agent"); then
       ensure_requirements requirements-deep.txt
     fi
     if printf '%s\n' "$@" | grep -qiE '^rviz:=(true|1)$'; then

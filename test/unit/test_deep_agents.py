@@ -12,8 +12,10 @@ from stable_baselines3.common.vec_env import VecCheckNan, VecMonitor
 from hopper_training import TASKS as HOPPER_TASKS
 from moving_cube_training import TASKS as CUBE_TASKS
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
-from robot_rl.deep import DeepTrainer, EpisodeSchedule, build_model, load_agent_params, make_vec_env
+from robot_rl.agents import find_agent
+from robot_rl.deep import DeepTrainer, EpisodeSchedule, build_model, make_vec_env
 from robot_rl.evaluation import TrainedRun, evaluate
+from robot_rl.ledger import TrainingHooks
 from robot_rl.params import ParamError
 from robot_rl.results import DEEP_CHECKPOINT, RunDirectory
 from robot_rl.task import make_env
@@ -71,13 +73,14 @@ def test_the_same_seed_gives_the_same_first_observations():
 
 
 def test_agent_params_are_validated_with_one_line_naming_the_key(tmp_path):
-    assert load_agent_params("dqn").hidden_units == 64
+    dqn = find_agent("dqn")
+    assert dqn.load_params().hidden_units == 64
     bad = tmp_path / "dqn.yaml"
-    bad.write_text((load_agent_params("dqn").to_mapping() | {"batch_size": 0}).__repr__().replace("'", '"'))
+    bad.write_text((dqn.load_params().to_mapping() | {"batch_size": 0}).__repr__().replace("'", '"'))
     with pytest.raises(ParamError, match=f"{bad}: parameter 'batch_size' = 0 out of range"):
-        load_agent_params("dqn", bad)
+        dqn.load_params(bad)
     with pytest.raises(ParamError, match="unknown agent 'a2c'"):
-        load_agent_params("a2c")
+        find_agent("a2c")
 
 
 def test_episode_schedule_falls_over_its_share_of_the_episodes():
@@ -94,13 +97,13 @@ def train(tmp_path, agent, envs, resume=False, nepisodes=6, max_steps=None, log=
     run = RunDirectory.latest(tmp_path, "moving_cube-" + agent, DEEP_CHECKPOINT) if resume else \
         RunDirectory.create(tmp_path, "moving_cube-" + agent, params.to_mapping(), ONE_DISK_WALK.metric_names,
                             checkpoint_name=DEEP_CHECKPOINT)
-    agent_params = load_agent_params(agent).with_changes("test", **({"learning_starts": 10} if agent == "dqn"
-                                                                     else {"n_steps": 16, "batch_size": 16}))
+    changes = {"learning_starts": 10} if agent == "dqn" else {"n_steps": 16, "batch_size": 16}
+    agent_params = find_agent(agent).load_params().with_changes("test", **changes)
     env = make_vec_env(ONE_DISK_WALK, envs, "direct", params.seed, params) if envs > 1 else \
         make_env(ONE_DISK_WALK, params=params, backend="direct", seed=params.seed)
     lines = [] if log is None else log
-    trainer = DeepTrainer(env, ONE_DISK_WALK, params, agent, agent_params, run, log=lines.append, resume=resume,
-                          checkpoint_every=2, max_steps=max_steps)
+    trainer = DeepTrainer(env, ONE_DISK_WALK, params, find_agent(agent), agent_params, run,
+                          TrainingHooks(log=lines.append, checkpoint_every=2), resume=resume, max_steps=max_steps)
     try:
         return run, trainer.train()
     finally:
@@ -139,7 +142,7 @@ def test_resume_continues_from_the_weights_and_counters(tmp_path):
     assert log[0].startswith(f"Resuming {run.path} after episode 4 ({first['env_steps']} env steps)")
     assert [r.episode for r in run.read_episodes()] == list(range(1, 9))
     assert second["completed"] and second["env_steps"] > first["env_steps"]
-    resumed = build_model("dqn", load_agent_params("dqn"), make_env(ONE_DISK_WALK, backend="direct"), 0.95, 0)
+    resumed = build_model(find_agent("dqn").load_params(), make_env(ONE_DISK_WALK, backend="direct"), 0.95, 0)
     resumed.set_parameters(str(run.model_zip))
     assert any(not np.array_equal(weights[k].numpy(), v.numpy()) for k, v in resumed.q_net.state_dict().items()), \
         "the resumed run trained on"
@@ -163,7 +166,7 @@ def test_a_step_budget_ends_training_and_drives_dqn_exploration(tmp_path):
 def test_evaluate_runs_the_deep_policy_greedily(tmp_path):
     run, _ = train(tmp_path, "dqn", 1)
     trained = TrainedRun(run.path, list(CUBE_TASKS))
-    assert trained.deep and trained.qlearn is None
+    assert trained.agent is find_agent("dqn") and trained.agent.needs_deep
     reports = [evaluate(trained, episodes=2, horizon_s=0.6, backend="direct", seed=3) for _ in range(2)]
     assert reports[0] == reports[1], "a deterministic policy on the direct backend repeats"
     assert set(reports[0]["greedy"]) == {"mean_return", "mean_y_distance", "success_rate"}

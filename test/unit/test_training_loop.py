@@ -8,6 +8,7 @@ import pytest
 import yaml
 
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from robot_rl.ledger import TrainingHooks
 from robot_rl.results import EpisodeRecord, RunDirectory
 from robot_rl.task import make_env
 from robot_rl.training import QLearningTrainer
@@ -26,8 +27,8 @@ def new_run(tmp_path, params, run_name=None):
 def make_trainer(run, params, checkpoint_every=10, resume=False, log=None, **kwargs):
     env = make_env(ONE_DISK_WALK, params=params, backend="direct", seed=params.seed)
     lines = [] if log is None else log
-    trainer = QLearningTrainer(env, ONE_DISK_WALK, params, run, log=lines.append, resume=resume,
-                               checkpoint_every=checkpoint_every, **kwargs)
+    trainer = QLearningTrainer(env, ONE_DISK_WALK, params, run,
+                               TrainingHooks(log=lines.append, checkpoint_every=checkpoint_every, **kwargs), resume)
     return trainer, env
 
 

@@ -216,6 +216,7 @@ def test_a_worker_that_cannot_make_its_env_fails_the_start_with_its_error(tmp_pa
 
 
 def vector_train(tmp_path, nepisodes, resume=False, log=None, run_name="run"):
+    from robot_rl.ledger import TrainingHooks
     from robot_rl.results import RunDirectory
     from robot_rl.vector_training import VectorQLearningTrainer
     params = short(ONE_DISK_WALK, 15).with_changes("test", nepisodes=nepisodes)
@@ -224,8 +225,8 @@ def vector_train(tmp_path, nepisodes, resume=False, log=None, run_name="run"):
     env = make_vector_env(ONE_DISK_WALK, 2, backend="direct", seed=params.seed, params=params)
     lines = [] if log is None else log
     try:
-        trainer = VectorQLearningTrainer(env, ONE_DISK_WALK, params, run, log=lines.append, resume=resume,
-                                         checkpoint_every=3)
+        trainer = VectorQLearningTrainer(env, ONE_DISK_WALK, params, run,
+                                         TrainingHooks(log=lines.append, checkpoint_every=3), resume)
         return run, trainer.train()
     finally:
         env.close()

@@ -1,16 +1,17 @@
 #!/usr/bin/env python3
-"""The course's comparison: tabular Q-learning vs DQN vs PPO on one robot, at the same number of env steps.
+"""The course's comparison: every agent of robot_rl.agents on one robot, at the same number of env steps.
 
   compare_agents.py ROBOT [--seeds 0 1 2] [--nepisodes N] [--eval-seed 0] [--episodes 20] [--output DIR]
 
 For each seed (the task's `seed` param: Q-learning's RNG, SB3's seed; the sim's noise seed too), over
-ROS with one env, as `./ws run ROBOT agent:=...` trains: tabular Q-learning for the task config's
-nepisodes (or --nepisodes); then DQN and PPO with max_steps:= the env steps that tabular run took, so all three see the
-same number of env steps. Every final policy is evaluated greedily (evaluate.py, --episodes episodes,
-direct backend, seed --eval-seed). Writes DIR/comparison.json (every run), DIR/comparison.md (the
-table: the headline metric of the greedy policy, wall time, env steps/s; mean and range over the seeds)
-and DIR/learning_curves.png (the headline metric per episode, averaged over 50 episodes, against env
-steps; one line per agent, the mean over the seeds, the band their range). The runs stay in
+ROS with one env, as `./ws run ROBOT agent:=...` trains: the first agent (tabular Q-learning) for the
+task config's nepisodes (or --nepisodes); then the others (DQN, PPO) with max_steps:= the env steps
+that first run took, so all of them see the same number of env steps. Every final policy is evaluated
+greedily (evaluate.py, --episodes episodes, direct backend, seed --eval-seed). Writes
+DIR/comparison.json (every run), DIR/comparison.md (the table: the headline metric of the greedy
+policy, wall time, env steps/s; mean and range over the seeds) and DIR/learning_curves.png (the
+headline metric per episode, averaged over 50 episodes, against env steps; one line per agent, the
+mean over the seeds, the band their range). The runs stay in
 DIR/runs/ (training_results layout). Machine and date are in the JSON and the table.
 """
 from __future__ import annotations
@@ -29,13 +30,13 @@ import yaml
 
 from hopper_training.monoped_env import STAY_UP
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from robot_rl.agents import AGENTS, AgentSpec
 from robot_rl.results import RunDirectory, moving_average
 from robot_rl.task import TaskSpec
 from workspace_tools.processes import Processes, RosMaster, launch_args
 
 ROBOTS: dict[str, tuple[TaskSpec[Any], str]] = {"cube": (ONE_DISK_WALK, "moving_cube_training"),
                                                 "hopper": (STAY_UP, "hopper_training")}
-AGENTS = ("qlearn", "dqn", "ppo")
 RUN_TIMEOUT = 4 * 3600.0
 
 
@@ -56,12 +57,12 @@ def _config_with_seed(task: TaskSpec[Any], seed: int, folder: Path) -> Path:
     return path
 
 
-def _train(robot: str, agent: str, seed: int, config: Path, results: Path, log_dir: Path,
+def _train(robot: str, agent: AgentSpec, seed: int, config: Path, results: Path, log_dir: Path,
            max_steps: int | None, nepisodes: int | None) -> Path:
     """One training run over ROS (the robot's main.launch); returns its run folder."""
     _, package = ROBOTS[robot]
     args: dict[str, Any] = dict(config=config, results_dir=results, seed=seed, video="false", quiet="true",
-                                agent=agent)
+                                agent=agent.name)
     if nepisodes is not None:
         args.update(nepisodes=nepisodes)
     if max_steps is not None:
@@ -73,10 +74,10 @@ def _train(robot: str, agent: str, seed: int, config: Path, results: Path, log_d
     finally:
         master.close()
     if result.returncode != 0:
-        raise RuntimeError(f"{robot} {agent} seed {seed} failed:\n{result.stdout[-3000:]}\n{result.stderr[-2000:]}")
+        raise RuntimeError(f"{robot} {agent.name} seed {seed} failed:\n{result.stdout[-3000:]}\n"
+                           f"{result.stderr[-2000:]}")
     task, _ = ROBOTS[robot]
-    name = task.results_name if agent == "qlearn" else f"{task.results_name}-{agent}"
-    return (results / name / "latest").resolve()
+    return (results / agent.results_name(task) / "latest").resolve()
 
 
 def _evaluate(robot: str, run: Path, episodes: int, seed: int, log_dir: Path) -> dict[str, Any]:
@@ -125,19 +126,19 @@ def compare(robot: str, seeds: list[int], eval_seed: int, episodes: int, output:
         for seed in seeds:
             config = _config_with_seed(task, seed, output)
             budget = None
-            for agent in AGENTS:
-                run = _train(robot, agent, seed, config, results, tmp / f"{agent}-{seed}", budget, nepisodes)
+            for agent in AGENTS.values():
+                run = _train(robot, agent, seed, config, results, tmp / f"{agent.name}-{seed}", budget, nepisodes)
                 summary = json.loads((run / "summary.json").read_text())
-                if agent == "qlearn":
+                if budget is None:  # the first agent's run sets the others' step budget
                     budget = summary["env_steps"]
-                evaluation = _evaluate(robot, run, episodes, eval_seed, tmp / f"eval-{agent}-{seed}")
+                evaluation = _evaluate(robot, run, episodes, eval_seed, tmp / f"eval-{agent.name}-{seed}")
                 steps, curve = _curve(run, headline)
-                entry = {"agent": agent, "seed": seed, "run": str(run), "env_steps": summary["env_steps"],
+                entry = {"agent": agent.name, "seed": seed, "run": str(run), "env_steps": summary["env_steps"],
                          "episodes": summary["episodes"], "wall_time_s": summary["wall_time_s"],
                          "env_steps_per_s": summary["env_steps_per_s"], "greedy": evaluation["greedy"],
                          "random": evaluation["random"], "curve_steps": steps, "curve": curve}
                 report["runs"].append(entry)
-                _log(f"{robot} {agent} seed {seed}: {summary['env_steps']} env steps in "
+                _log(f"{robot} {agent.name} seed {seed}: {summary['env_steps']} env steps in "
                      f"{summary['wall_time_s']:.0f} s, greedy {greedy_key} {evaluation['greedy'][greedy_key]:.3g}")
                 (output / "comparison.json").write_text(json.dumps(report, indent=1) + "\n")
     _write_table(report, output / "comparison.md")
@@ -189,7 +190,7 @@ def _plot(report: dict[str, Any], path: Path) -> None:
             ax.fill_between(grid, curves.min(axis=0), curves.max(axis=0), alpha=0.2)
         ax.set_xlabel("env steps")
         ax.set_ylabel(f"{report['headline_metric']} (moving average of 50 episodes)")
-        ax.set_title(f"{report['task']}: tabular Q-learning, DQN, PPO (seeds {', '.join(map(str, report['seeds']))})")
+        ax.set_title(f"{report['task']}: {', '.join(AGENTS)} (seeds {', '.join(map(str, report['seeds']))})")
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best")
         fig.tight_layout()

@@ -7,12 +7,12 @@ is asked for. Agents run on the CPU with one torch thread (the envs' workers nee
   ROS each with its own master and sim node). SB3's conventions: done = terminated or truncated, the
   last observation in info["terminal_observation"], info["TimeLimit.truncated"], the env reset at once.
   `seed(s)` gives worker i the i-th seed numpy's SeedSequence(s) derives, as the gymnasium face does.
+- `DqnParams`, `PpoParams`: each agent's params (robot_rl/config/<agent>.yaml) and its SB3 algorithm.
 - `DeepTrainer`: trains until `nepisodes` episodes have ended (or `max_steps` env steps: then DQN's
   exploration falls over a share of those steps, SB3's way; without it over a share of the episodes,
-  like tabular Q-learning's epsilon, by `EpisodeSchedule`), and writes the
-  run as tabular Q-learning does (episodes.csv with the task's metrics, learning_curve.png,
-  summary.json) plus SB3's model.zip and our checkpoint agent.json (JSON: the agent's params and the
-  counters), both every `checkpoint_every` episodes and at the end.
+  like tabular Q-learning's epsilon, by `EpisodeSchedule`); its RunLedger writes the run as tabular
+  Q-learning's does (episodes.csv with the task's metrics, learning_curve.png, summary.json), the
+  checkpoint being SB3's model.zip and our agent.json (JSON: the agent's params and the counters).
 - Resume rebuilds the model from the run's params (params.yaml, agent.json) and loads only the weights
   from model.zip (SB3's set_parameters: torch tensors read with weights_only; SB3's pickled `data` is
   never unpickled), with the counters (episodes, env steps, SB3's num_timesteps, so DQN's exploration
@@ -20,17 +20,16 @@ is asked for. Agents run on the CPU with one torch thread (the envs' workers nee
   the optimiser's RNG streams, so a resumed DQN first collects `learning_starts` new transitions with
   its current policy before it trains again, and a resumed run is not bit-for-bit the uninterrupted
   one; PPO's rollout under way at the checkpoint is collected anew.
-- `load_policy`: a trained run's greedy (deterministic) policy, for evaluate.py and the training video.
+- `make_trainer`, `make_vec_env`, `greedy_policy`: the agent registry's entry points (robot_rl.agents);
+  `greedy_policy` is a trained run's deterministic policy, for evaluate.py and the training video.
 """
 from __future__ import annotations
 
 import dataclasses
 import math
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium
 import numpy as np
@@ -41,14 +40,17 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 
-from .params import ParamError, Params, TaskParams, load_yaml_file, param
-from .results import DEEP_CHECKPOINT, EpisodeRecord, RunDirectory, aggregate
-from .task import Episode, MetricValue, TaskSpec, package_path
-from .training import PROGRESS_WINDOW, SUMMARY_WINDOW, TrainingState, format_duration
+from .ledger import DEFAULT_HOOKS, Learner, RunLedger, TrainingHooks, TrainingState, format_duration, restored_state
+from .params import ParamError, Params, TaskParams, param
+from .results import EpisodeRecord, RunDirectory, aggregate
+from .task import Episode, TaskSpec
 from .vector import EnvWorkers, worker_seeds
 
+if TYPE_CHECKING:
+    from .agents import AgentSpec
+    from .evaluation import TrainedRun
+
 CHECKPOINT_FORMAT = "robot_rl.deep_checkpoint/1"
-AGENTS = ("dqn", "ppo")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -56,6 +58,14 @@ class NetworkParams(Params):
     hidden_layers: int = param(low=1, high=8, doc="hidden layers of the MLP")
     hidden_units: int = param(low=1, high=4096, doc="units per hidden layer")
     learning_rate: float = param(low=0.0, low_open=True, high=1.0, doc="Adam's step size")
+
+    def algorithm(self) -> Callable[..., BaseAlgorithm]:
+        """The SB3 algorithm these params are for (DQN and PPO take gamma, BaseAlgorithm does not)."""
+        raise NotImplementedError
+
+    def policy_kwargs(self, network: list[int]) -> dict[str, Any]:
+        """SB3's policy_kwargs for hidden layers of these sizes."""
+        raise NotImplementedError
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -72,6 +82,12 @@ class DqnParams(NetworkParams):
     exploration_initial_eps: float = param(low=0.0, high=1.0, doc="epsilon at the start")
     exploration_final_eps: float = param(low=0.0, high=1.0, doc="epsilon at the end of the fall")
 
+    def algorithm(self) -> Callable[..., BaseAlgorithm]:
+        return DQN
+
+    def policy_kwargs(self, network: list[int]) -> dict[str, Any]:
+        return {"net_arch": network}
+
 
 @dataclass(frozen=True, kw_only=True)
 class PpoParams(NetworkParams):
@@ -84,33 +100,21 @@ class PpoParams(NetworkParams):
     clip_range: float = param(low=0.0, low_open=True, doc="PPO's clip range")
     ent_coef: float = param(low=0.0, doc="entropy bonus weight")
 
+    def algorithm(self) -> Callable[..., BaseAlgorithm]:
+        return PPO
 
-PARAMS_TYPES: dict[str, type[NetworkParams]] = {"dqn": DqnParams, "ppo": PpoParams}
-ALGORITHMS: dict[str, Any] = {"dqn": DQN, "ppo": PPO}  # DQN and PPO take gamma, BaseAlgorithm does not
-
-
-def agent_config_path(agent: str) -> Path:
-    """robot_rl/config/<agent>.yaml, the agent's default params."""
-    return package_path("robot_rl") / "config" / f"{agent}.yaml"
+    def policy_kwargs(self, network: list[int]) -> dict[str, Any]:
+        return {"net_arch": {"pi": network, "vf": network}}
 
 
-def load_agent_params(agent: str, path: Path | None = None) -> NetworkParams:
-    """The agent's params from `path` (default: robot_rl/config/<agent>.yaml); ParamError names the key."""
-    if agent not in AGENTS:
-        raise ParamError(f"unknown agent {agent!r} (known: qlearn, {', '.join(AGENTS)})")
-    path = path or agent_config_path(agent)
-    return PARAMS_TYPES[agent].from_mapping(load_yaml_file(path), str(path))
-
-
-def build_model(agent: str, agent_params: NetworkParams, env: VecEnv | gymnasium.Env[Any, Any], gamma: float,
+def build_model(agent_params: NetworkParams, env: VecEnv | gymnasium.Env[Any, Any], gamma: float,
                 seed: int) -> BaseAlgorithm:
-    """The SB3 model of `agent` with these params, on the CPU, with a logger that writes nothing (SB3's
-    default one makes an empty folder /tmp/SB3-<date> at every learn())."""
+    """The SB3 model these params are for, on the CPU, with a logger that writes nothing (SB3's default one
+    makes an empty folder /tmp/SB3-<date> at every learn())."""
     values = agent_params.to_mapping()
     network = [values.pop("hidden_units")] * values.pop("hidden_layers")
-    policy_kwargs = {"net_arch": network} if agent == "dqn" else {"net_arch": {"pi": network, "vf": network}}
-    model = ALGORITHMS[agent]("MlpPolicy", env, gamma=gamma, seed=seed, device="cpu", verbose=0,
-                              policy_kwargs=policy_kwargs, **values)
+    model = agent_params.algorithm()("MlpPolicy", env, gamma=gamma, seed=seed, device="cpu", verbose=0,
+                                     policy_kwargs=agent_params.policy_kwargs(network), **values)
     model.set_logger(Logger(folder=None, output_formats=[]))
     return model
 
@@ -224,8 +228,7 @@ class _EpisodeLogger(BaseCallback):
         for i in range(len(dones)):
             self.returns[i] += float(rewards[i])
             self.steps[i] += 1
-            if on_step is not None:
-                on_step(float(rewards[i]), self.returns[i])
+            on_step(float(rewards[i]), self.returns[i])
             if dones[i]:
                 info = infos[i]
                 self.trainer.episode_done(i, self.steps[i], self.returns[i],
@@ -234,26 +237,21 @@ class _EpisodeLogger(BaseCallback):
         return self.trainer.keep_going()
 
 
-class DeepTrainer:
-    """Trains `agent` (dqn or ppo) on `env` (an SB3 VecEnv, or one gymnasium env) and writes `run`."""
+class DeepTrainer(Learner):
+    """Trains the deep `agent` (its params `agent_params`) on `env` (an SB3 VecEnv, or one gymnasium env)
+    and writes `run`."""
 
-    def __init__(self, env: VecEnv | gymnasium.Env[Any, Any], task: TaskSpec[Any], params: TaskParams, agent: str,
-                 agent_params: NetworkParams, run: RunDirectory, log: Callable[[str], None] = print,
-                 log_episode: Callable[[str], None] | None = None,
-                 on_step: Callable[[float, float], None] | None = None,
-                 on_episode: Callable[[float], None] | None = None,
-                 should_stop: Callable[[], bool] = lambda: False, resume: bool = False, checkpoint_every: int = 10,
-                 progress_every_s: float = 10.0, max_steps: int | None = None):
+    def __init__(self, env: VecEnv | gymnasium.Env[Any, Any], task: TaskSpec[Any], params: TaskParams,
+                 agent: AgentSpec, agent_params: NetworkParams, run: RunDirectory,
+                 hooks: TrainingHooks = DEFAULT_HOOKS, resume: bool = False, max_steps: int | None = None):
         torch.set_num_threads(1)
         self.env: VecEnv = env if isinstance(env, VecEnv) else DummyVecEnv([lambda: env])
         self.task, self.params, self.agent, self.run = task, params, agent, run
-        self.log, self.log_episode = log, log_episode or log
-        self.on_step, self.on_episode, self.should_stop = on_step, on_episode, should_stop
-        self.checkpoint_every, self.progress_every_s = checkpoint_every, progress_every_s
+        self.on_step, self.should_stop = hooks.on_step, hooks.should_stop
         self.max_steps = max_steps if max_steps is not None else params.nepisodes * params.nsteps  # at most
         self.n_envs = self.env.num_envs
-        run.checkpoint_name = DEEP_CHECKPOINT
-        self.model = build_model(agent, agent_params, self.env, params.gamma, params.seed)
+        run.checkpoint_name = agent.checkpoint_name
+        self.model = build_model(agent_params, self.env, params.gamma, params.seed)
         self.agent_params = agent_params
         self.schedule: EpisodeSchedule | None = None
         if isinstance(self.model, DQN) and max_steps is None:
@@ -262,7 +260,6 @@ class DeepTrainer:
                                             agent_params.exploration_fraction)
             self.model.exploration_schedule = self.schedule
         self.stopped: str | None = None
-        self._wall_start = self._next_progress = time.monotonic()
         self._timesteps_offset = self._steps_at_start = 0
         if resume:
             self.state, num_timesteps = run.prepare_resume(self._restore)
@@ -270,26 +267,21 @@ class DeepTrainer:
             self.model.num_timesteps = num_timesteps
             if isinstance(self.model, DQN):  # its replay buffer was not saved: fill it anew before training
                 self.model.learning_starts = num_timesteps + self.model.learning_starts
-            log(f"Resuming {run.path} after episode {self.state.episode} ({self.state.env_steps} env steps)")
+            hooks.log(f"Resuming {run.path} after episode {self.state.episode} ({self.state.env_steps} env steps)")
         else:
             self.state = TrainingState()
         if self.schedule is not None:
             self.schedule.progress = self.state.episode / params.nepisodes
-        self.headline: list[MetricValue] = [r.metrics.get(task.headline_metric, math.nan)
-                                            for r in run.read_episodes()[-PROGRESS_WINDOW:]]
-        self.episodes_per_env = [0] * self.n_envs
+        self.ledger = RunLedger(run, task, params.nepisodes, self.state, self, hooks, n_envs=self.n_envs,
+                                count_env_steps=self._count_steps)
 
     def _restore(self, checkpoint: dict[str, Any]) -> tuple[TrainingState, int]:
         """The counters of a checkpoint, checked against this run (ValueError/KeyError/TypeError if not)."""
-        if checkpoint.get("format") != CHECKPOINT_FORMAT:
-            raise ValueError(f"format is {checkpoint.get('format')!r}, expected {CHECKPOINT_FORMAT!r}")
-        if checkpoint["task"] != self.task.env_id:
-            raise ValueError(f"it is of task {checkpoint['task']!r}, this run trains {self.task.env_id!r}")
-        if checkpoint["agent"] != self.agent:
-            raise ValueError(f"it is of agent {checkpoint['agent']!r}, this run trains {self.agent!r}")
+        state = restored_state(checkpoint, CHECKPOINT_FORMAT, self.task)
+        if checkpoint["agent"] != self.agent.name:
+            raise ValueError(f"it is of agent {checkpoint['agent']!r}, this run trains {self.agent.name!r}")
         if checkpoint["agent_params"] != self.agent_params.to_mapping():
             raise ValueError("its agent params differ from this run's (they shape the network the weights fit)")
-        state = TrainingState.from_dict(checkpoint["state"])
         num_timesteps = checkpoint["num_timesteps"]
         if not (isinstance(num_timesteps, int) and num_timesteps >= 0):
             raise ValueError(f"num_timesteps {num_timesteps!r} is not a count")
@@ -297,69 +289,52 @@ class DeepTrainer:
             raise ValueError(f"{self.run.model_zip} is missing")
         return state, num_timesteps
 
-    def checkpoint(self) -> None:
+    def save_checkpoint(self) -> None:
         """model.zip (SB3's format), then agent.json (ours), each written whole."""
         partial = self.run.path / "model.partial.zip"
         self.model.save(str(partial))
         partial.replace(self.run.model_zip)
-        self.run.checkpoint({"format": CHECKPOINT_FORMAT, "task": self.task.env_id, "agent": self.agent,
+        self.run.checkpoint({"format": CHECKPOINT_FORMAT, "task": self.task.env_id, "agent": self.agent.name,
                              "agent_params": self.agent_params.to_mapping(), "envs": self.n_envs,
                              "episode": self.state.episode, "num_timesteps": int(self.model.num_timesteps),
                              "state": dataclasses.asdict(self.state)})
-        self.run.write_learning_curve(self.task.headline_metric)
 
     def _exploration(self) -> float:
         """The epsilon column: DQN's exploration rate (PPO explores by sampling its policy: NaN)."""
         return float(self.model.exploration_rate) if isinstance(self.model, DQN) else math.nan
 
-    def episode_done(self, env_index: int, steps: int, return_: float, terminated: bool, info: dict[str, Any]) -> None:
-        """Log one finished episode of env `env_index` (as tabular training does), checkpoint when due."""
-        state = self.state
-        if state.episode >= self.params.nepisodes:
-            return  # an episode of another env that ended after the last one counted
-        duration = steps * self.params.running_step
-        episode = Episode(steps=steps, return_=return_, terminated=terminated, duration=duration, info=info)
-        metrics = self.task.metrics(episode)
-        self.headline = [*self.headline[-PROGRESS_WINDOW + 1:], metrics[self.task.headline_metric]]
-        self.episodes_per_env[env_index] += 1
-        state.highest_reward = max(state.highest_reward, return_)
-        if terminated:
-            state.last_time_steps.append(steps)
-        state.episode += 1
-        if self.schedule is not None:
-            self.schedule.progress = state.episode / self.params.nepisodes
-        state.sim_time += episode.duration
-        state.wall_time = time.monotonic() - self._wall_start
-        self.run.append_episode(EpisodeRecord(episode=state.episode, steps=steps, return_=return_,
-                                              epsilon=self._exploration(), sim_time=state.sim_time,
-                                              wall_time=state.wall_time, metrics=metrics))
-        if self.on_episode is not None:
-            self.on_episode(return_)
-        per_env = f" - env {env_index + 1}/{self.n_envs} (episodes per env: " \
-                  f"{', '.join(map(str, self.episodes_per_env))})" if self.n_envs > 1 else ""
-        exploration = f": exploration {self._exploration():.2f}" if isinstance(self.model, DQN) else ""
-        self.log_episode(f"EP: {state.episode} - [{self.agent}{exploration}] - Reward: {return_:.1f}     Time: "
-                         f"{format_duration(state.wall_time)}{per_env}")
-        if state.episode % self.checkpoint_every == 0:
-            self._count_steps()
-            self.checkpoint()
+    def episode_label(self, epsilon: float) -> str:
+        return f"{self.agent.name}: exploration {epsilon:.2f}" if isinstance(self.model, DQN) else self.agent.name
 
-    def _count_steps(self) -> None:
-        self.state.env_steps = int(self.model.num_timesteps) - self._timesteps_offset + self._steps_at_start
+    def exploration_label(self) -> str:
+        return f", exploration {self._exploration():.3f}" if isinstance(self.model, DQN) else ""
+
+    def summary_fields(self) -> dict[str, Any]:
+        return {"agent": self.agent.name, "envs": self.n_envs, "max_steps": self.max_steps}
+
+    def closing_lines(self, summary: dict[str, Any], last: Sequence[EpisodeRecord]) -> list[str]:
+        state, metric = self.state, self.task.headline_metric
+        headline = aggregate({metric: [r.metrics[metric] for r in last]})
+        return [f"{self.agent.name}: {state.episode} episodes, {state.env_steps} env steps in "
+                f"{format_duration(state.wall_time)}; over the last {len(last)} episodes: "
+                f"{', '.join(f'{k} {v:.3g}' for k, v in headline.items() if v is not None)}"]
+
+    def episode_done(self, env_index: int, steps: int, return_: float, terminated: bool, info: dict[str, Any]) -> None:
+        """Hand one finished episode of env `env_index` to the ledger."""
+        if self.state.episode >= self.params.nepisodes:
+            return  # an episode of another env that ended after the last one counted
+        if self.schedule is not None:
+            self.schedule.progress = (self.state.episode + 1) / self.params.nepisodes
+        episode = Episode(steps=steps, return_=return_, terminated=terminated,
+                          duration=steps * self.params.running_step, info=info)
+        self.ledger.episode_done(episode, return_, self._exploration(), env_index)
+
+    def _count_steps(self) -> int:
+        return int(self.model.num_timesteps) - self._timesteps_offset + self._steps_at_start
 
     def keep_going(self) -> bool:
         """Whether SB3 should take another step (and a progress line every progress_every_s)."""
-        now = time.monotonic()
-        if now >= self._next_progress:
-            self._next_progress = now + self.progress_every_s
-            self._count_steps()
-            state = self.state
-            rate = state.env_steps / max(now - self._wall_start, 1e-9)
-            value = next(iter(aggregate({self.task.headline_metric: self.headline}).items()))
-            exploration = f", exploration {self._exploration():.3f}" if isinstance(self.model, DQN) else ""
-            self.log(f"progress: episode {state.episode}/{self.params.nepisodes}, {state.env_steps} env steps, "
-                     f"{rate:.0f} env steps/s, {value[0]} over the last {len(self.headline)} episodes: "
-                     f"{value[1]:.3g}{exploration}")
+        self.ledger.log_progress_if_due()
         if self.should_stop():
             self.stopped = "interrupted"
             return False
@@ -367,51 +342,16 @@ class DeepTrainer:
 
     def train(self) -> dict[str, Any]:
         """Train until nepisodes episodes (or max_steps env steps); returns the summary written to summary.json."""
-        state = self.state
-        self._wall_start = time.monotonic() - state.wall_time
-        self._next_progress = time.monotonic() + self.progress_every_s
+        state, ledger = self.state, self.ledger
+        ledger.start()
         self._timesteps_offset, self._steps_at_start = int(self.model.num_timesteps), state.env_steps
         remaining = self.max_steps - state.env_steps
         if state.episode < self.params.nepisodes and remaining > 0 and not self.should_stop():
-            try:
+            with ledger.saved_on_stop():
                 self.model.learn(total_timesteps=remaining, callback=_EpisodeLogger(self), reset_num_timesteps=False)
-            except BaseException as error:
-                self.stopped = "interrupted" if isinstance(error, KeyboardInterrupt) or self.should_stop() \
-                    else f"error: {error}"
-                self._save_quietly()
-                raise
-        self._count_steps()
-        state.wall_time = time.monotonic() - self._wall_start
-        self.checkpoint()
+        ledger.sync_env_steps()
         done = state.episode >= self.params.nepisodes or state.env_steps >= self.max_steps
-        return self.finish(stopped=None if done and self.stopped is None else self.stopped or "interrupted")
-
-    def _save_quietly(self) -> None:
-        try:
-            self._count_steps()
-            self.checkpoint()
-            self.finish(self.stopped)
-        except (OSError, ValueError) as error:  # the original error matters more; say why nothing was saved
-            self.log(f"could not save the run after episode {self.state.episode}: {error}")
-
-    def finish(self, stopped: str | None = None) -> dict[str, Any]:
-        state = self.state
-        last = self.run.read_episodes()[-SUMMARY_WINDOW:]
-        metrics = aggregate({name: [r.metrics[name] for r in last] for name in self.run.metric_names})
-        summary = {"task": self.task.env_id, "robot": self.run.robot, "run": self.run.name, "agent": self.agent,
-                   "envs": self.n_envs, "episodes": state.episode, "nepisodes": self.params.nepisodes,
-                   "max_steps": self.max_steps, "highest_reward": state.highest_reward,
-                   "mean_return_last_100": aggregate({"return": [r.return_ for r in last]})["mean_return"],
-                   "metrics_last_100": metrics, "headline_metric": self.task.headline_metric,
-                   "env_steps": state.env_steps, "sim_time_s": state.sim_time, "wall_time_s": state.wall_time,
-                   "env_steps_per_s": state.env_steps / state.wall_time if state.wall_time > 0 else None,
-                   "completed": stopped is None, "stopped": stopped}
-        self.run.write_summary(summary)
-        headline = aggregate({self.task.headline_metric: [r.metrics[self.task.headline_metric] for r in last]})
-        self.log(f"{self.agent}: {state.episode} episodes, {state.env_steps} env steps in "
-                 f"{format_duration(state.wall_time)}; over the last {len(last)} episodes: "
-                 f"{', '.join(f'{k} {v:.3g}' for k, v in headline.items() if v is not None)}")
-        return summary
+        return ledger.close(done, self.stopped)
 
 
 class DeepPolicy:
@@ -425,20 +365,26 @@ class DeepPolicy:
         return int(action)
 
 
-def load_policy(run_dir: Path, task: TaskSpec[Any], params: TaskParams, env: gymnasium.Env[Any, Any]) -> DeepPolicy:
+def make_trainer(agent: AgentSpec, env: VecEnv | gymnasium.Env[Any, Any], task: TaskSpec[Any], params: TaskParams,
+                 run: RunDirectory, hooks: TrainingHooks, resume: bool, agent_params: Params | None,
+                 max_steps: int | None) -> DeepTrainer:
+    assert isinstance(agent_params, NetworkParams)
+    return DeepTrainer(env, task, params, agent, agent_params, run, hooks, resume, max_steps)
+
+
+def greedy_policy(run: TrainedRun, checkpoint: dict[str, Any]) -> Callable[[gymnasium.Env[Any, Any], int], DeepPolicy]:
     """The greedy policy of a deep run: the model rebuilt from agent.json's params, its weights from model.zip."""
-    run = RunDirectory(run_dir, DEEP_CHECKPOINT)
-    checkpoint = run.load_checkpoint()
     try:
-        agent = checkpoint["agent"]
-        if checkpoint.get("format") != CHECKPOINT_FORMAT or agent not in AGENTS:
-            raise ValueError(f"format {checkpoint.get('format')!r}, agent {agent!r}")
-        if checkpoint["task"] != task.env_id:
-            raise ValueError(f"it is of task {checkpoint['task']!r}")
-        agent_params = PARAMS_TYPES[agent].from_mapping(checkpoint["agent_params"], str(run.checkpoint_json))
+        if checkpoint.get("format") != CHECKPOINT_FORMAT:
+            raise ValueError(f"format {checkpoint.get('format')!r}")
+        agent_params = run.agent.load_params_from(checkpoint["agent_params"], str(run.path))
     except (KeyError, TypeError, ValueError, ParamError) as error:
-        raise ValueError(f"{run.checkpoint_json}: not a deep agent's checkpoint ({error})") from None
-    torch.set_num_threads(1)
-    model = build_model(agent, agent_params, DummyVecEnv([lambda: env]), params.gamma, params.seed)
-    model.set_parameters(str(run.model_zip), exact_match=True, device="cpu")
-    return DeepPolicy(model)
+        raise ValueError(f"{run.path}: not a deep agent's checkpoint ({error})") from None
+    assert isinstance(agent_params, NetworkParams)
+
+    def policy(env: gymnasium.Env[Any, Any], _seed: int) -> DeepPolicy:
+        torch.set_num_threads(1)
+        model = build_model(agent_params, DummyVecEnv([lambda: env]), run.params.gamma, run.params.seed)
+        model.set_parameters(str(run.path.with_name("model.zip")), exact_match=True, device="cpu")
+        return DeepPolicy(model)
+    return policy

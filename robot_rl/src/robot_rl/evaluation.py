@@ -6,8 +6,8 @@
 RUN (also --run) is a run folder (training_results/<task>/<run>, or its `latest` link) or its checkpoint:
 qtable.json of tabular Q-learning, or agent.json of a deep agent (its greedy policy is the SB3 model's
 deterministic action, the model rebuilt from agent.json and its weights loaded from model.zip; needs
-requirements-deep.txt: ./ws setup deep). The checkpoint names the task, the run's params.yaml gives
-its parameters. Each episode lasts until the
+requirements-deep.txt: ./ws setup deep). The checkpoint names the task (and a deep run's agent, see
+robot_rl.agents), the run's params.yaml gives its parameters. Each episode lasts until the
 task terminates it or `--horizon-s` seconds of sim time have passed (default: the task's). The last
 output line is one JSON object: {"task", "episodes", "horizon_s", "seed", "greedy": {...}, "random":
 {...}}, each policy with mean_return and the task's metrics (`mean_<metric>`, `<metric>_rate`).
@@ -32,51 +32,38 @@ import yaml
 
 from pybullet_sim.client import SimConnectionError
 
+from .agents import agent_of, checkpoint_of
 from .params import ParamError
-from .qlearn import QLearn
-from .results import DEEP_CHECKPOINT, QTABLE_CHECKPOINT, RunDirectory, aggregate
-from .task import Episode, StateKey, TaskSpec, find_task, make_env
+from .results import RunDirectory, aggregate
+from .task import Episode, TaskSpec, find_task, make_env
 from .video import VideoRecorder
 
 MAX_VIDEO_SIDE = 4096
 
 
 class TrainedRun:
-    """A run's task, params and policy (a Q-table with its state key, or a deep agent's model), checked
-    against each other."""
+    """A run's agent, task, params and greedy policy, checked against each other. `path`: a run folder
+    or its checkpoint file."""
 
     def __init__(self, path: Path, tasks: Sequence[TaskSpec[Any]]):
-        if path.is_dir():
-            deep = (path / DEEP_CHECKPOINT).is_file() and not (path / QTABLE_CHECKPOINT).is_file()
-            path = path / (DEEP_CHECKPOINT if deep else QTABLE_CHECKPOINT)
-        self.path, self.deep = path, path.name == DEEP_CHECKPOINT
-        checkpoint = RunDirectory(path.parent, path.name).load_checkpoint()
-        qtable = path
+        self.path = checkpoint_of(path) if path.is_dir() else path
+        checkpoint = RunDirectory(self.path.parent, self.path.name).load_checkpoint()
         try:
+            self.agent = agent_of(checkpoint)
             self.task = find_task(list(tasks), checkpoint["task"])
-            self.qlearn = None if self.deep else QLearn.from_dict(checkpoint["qlearn"])
-            saved_key = None if self.deep else checkpoint["state_key"]
         except (KeyError, TypeError) as error:
-            raise ValueError(f"{qtable}: not a training checkpoint (missing {error})") from None
-        params_file = qtable.with_name("params.yaml")
+            raise ValueError(f"{self.path}: not a training checkpoint (missing {error})") from None
+        self.params_file = self.path.with_name("params.yaml")
         try:
-            document = yaml.safe_load(params_file.read_text(encoding="utf-8"))
+            document = yaml.safe_load(self.params_file.read_text(encoding="utf-8"))
         except (OSError, yaml.YAMLError) as error:
-            raise ValueError(f"{params_file}: {error}") from None
-        self.params = self.task.params_type.from_mapping(document or {}, str(params_file))
-        self.state_key: StateKey = self.task.state_key(self.params)
-        if not self.deep and self.state_key.to_dict() != saved_key:
-            raise ValueError(f"{qtable}: the Q-table was trained with another state key than this code makes from "
-                             f"{params_file}")
+            raise ValueError(f"{self.params_file}: {error}") from None
+        self.params = self.task.params_type.from_mapping(document or {}, str(self.params_file))
+        self._policy = self.agent.greedy_policy(self, checkpoint)
 
     def policy(self, env: Any, seed: int) -> Callable[[np.ndarray], int]:
-        """The greedy policy (tie breaks of the Q-table seeded with `seed`); `env` shapes a deep agent's model."""
-        if self.qlearn is None:
-            from .deep import load_policy
-            return load_policy(self.path.parent, self.task, self.params, env)
-        qlearn, state_key = self.qlearn, self.state_key
-        qlearn.rng.seed(seed)
-        return lambda observation: qlearn.greedy_action(state_key.key(observation))
+        """The greedy policy (tie breaks seeded with `seed`); `env` shapes a deep agent's model."""
+        return self._policy(env, seed)
 
 
 @dataclass(frozen=True)
@@ -176,6 +163,9 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str) ->
         run = TrainedRun(args.run, tasks)
     except (OSError, ParamError, ValueError) as error:
         parser.exit(2, f"evaluate.py: cannot read the trained run {args.run}: {error}\n")
+    except ModuleNotFoundError as error:  # a deep run without requirements-deep.txt
+        parser.exit(1, f"evaluate.py: {args.run} is a deep agent's run and {error.name} is not installed: "
+                       f"./ws setup deep installs requirements-deep.txt\n")
     if args.backend == "ros":
         from .backends import init_ros_node
         try:
@@ -187,8 +177,5 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str) ->
         report = evaluate(run, args.episodes, horizon_s, args.backend, args.seed, video)
     except SimConnectionError as error:
         parser.exit(1, f"evaluate.py: {error}\n")
-    except ModuleNotFoundError as error:  # a deep run without requirements-deep.txt
-        parser.exit(1, f"evaluate.py: {args.run} is a deep agent's run and {error.name} is not installed: "
-                       f"./ws setup deep installs requirements-deep.txt\n")
     print(json.dumps(report))
     return 0

@@ -1,9 +1,9 @@
 """Training results on disk: <root>/<results name>/<run>/ plus a <root>/<results name>/latest symlink.
 
-A run directory holds params.yaml, episodes.csv, a checkpoint (qtable.json for tabular Q-learning;
-agent.json beside Stable-Baselines3's model.zip for a deep agent), learning_curve.png, summary.json
-and, once trained, video.mp4 (the greedy policy). Everything except the append-only episodes.csv is
-written atomically; no pickle.
+A run directory holds params.yaml, episodes.csv, its agent's checkpoint (robot_rl.agents: qtable.json
+for tabular Q-learning; agent.json beside Stable-Baselines3's model.zip for a deep agent),
+learning_curve.png, summary.json and, once trained, video.mp4 (the greedy policy). Everything except
+the append-only episodes.csv is written atomically; no pickle.
 episodes.csv has the columns of every task (COLUMNS) followed by the task's own metrics.
 """
 from __future__ import annotations

@@ -9,9 +9,9 @@ $ROS_HOME/training_results), ~resume, ~nepisodes and ~seed (optional overrides o
 level), ~video (default true: once trained, video.mp4 next to learning_curve.png shows one greedy
 episode of the final policy, at most TRAINING_VIDEO_S of sim time, rendered on the direct backend so
 that the ROS sim is not needed),
-~agent (qlearn, the tutorials' tabular Q-learning; dqn or ppo, Stable-Baselines3's, see robot_rl.deep;
-their runs go to <results name>-<agent>/), ~agent_config (the deep agent's YAML, default
-robot_rl/config/<agent>.yaml), ~max_steps (a deep agent's env step budget; 0: nepisodes decides),
+~agent (a name in robot_rl.agents: qlearn, the tutorials' tabular Q-learning; dqn or ppo,
+Stable-Baselines3's, their runs going to <results name>-<agent>/), ~agent_config (a deep agent's YAML,
+default robot_rl/config/<agent>.yaml), ~max_steps (a deep agent's env step budget; 0: nepisodes decides),
 ~envs (1: the env over this master's sim; N > 1: N workers, each with a master and a sim of its own,
 see robot_rl.vector; the launch's own sim then idles).
 
@@ -36,11 +36,12 @@ from std_msgs.msg import Float64
 from pybullet_sim.client import SimConnectionError
 from pybullet_sim.shutdown import shutdown_on_signals, shutting_down
 
+from .agents import DEFAULT_AGENT, AgentSpec, find_agent
 from .evaluation import TrainedRun, VideoRequest, evaluate
-from .params import ParamError, TaskParams, load_yaml_file
-from .results import DEEP_CHECKPOINT, QTABLE_CHECKPOINT, RunDirectory
+from .ledger import TrainingHooks
+from .params import ParamError, Params, TaskParams, load_yaml_file
+from .results import RunDirectory
 from .task import TaskSpec, find_task, make_env
-from .training import QLearningTrainer
 from .vector import WorkerError
 
 INTERRUPTED = 130  # the shell's code for a command ended by SIGINT
@@ -90,37 +91,33 @@ def _write_video(tasks: Sequence[TaskSpec[Any]], task: TaskSpec[Any], run: RunDi
                   report["horizon_s"], time.monotonic() - start, metrics)
 
 
-def _read_agent() -> tuple[str, Any, int, int | None]:
-    """(agent, its params or None for qlearn, envs, max_steps or None) from the private params."""
-    agent, envs, max_steps = rospy.get_param("~agent", "qlearn"), rospy.get_param("~envs", 1), \
+def _read_agent() -> tuple[AgentSpec, Params | None, int, int | None]:
+    """(agent, its own params or None, envs, max_steps or None) from the private params."""
+    name, envs, max_steps = rospy.get_param("~agent", DEFAULT_AGENT), rospy.get_param("~envs", 1), \
         rospy.get_param("~max_steps", 0)
     if not (isinstance(envs, int) and not isinstance(envs, bool) and envs >= 1):
         raise ParamError(f"{rospy.get_name()}: parameter '~envs' must be a whole number >= 1, got {envs!r}")
     if not (isinstance(max_steps, int) and not isinstance(max_steps, bool) and max_steps >= 0):
         raise ParamError(f"{rospy.get_name()}: parameter '~max_steps' must be a whole number >= 0, got {max_steps!r}")
-    if agent == "qlearn":
-        return agent, None, envs, None
-    if agent not in ("dqn", "ppo"):
-        raise ParamError(f"{rospy.get_name()}: parameter '~agent' = {agent!r} is not one of qlearn, dqn, ppo")
     try:
-        from .deep import load_agent_params
-    except ModuleNotFoundError as error:
-        raise ParamError(f"agent {agent} needs {error.name}, which is not installed: ./ws run ... agent:={agent} "
-                         f"installs requirements-deep.txt (or ./ws setup deep)") from None
+        agent = find_agent(name)
+    except ParamError as error:
+        raise ParamError(f"{rospy.get_name()}: parameter '~agent': {error}") from None
     config = rospy.get_param("~agent_config", "")
-    return agent, load_agent_params(agent, Path(config) if config else None), envs, max_steps or None
+    try:
+        agent_params = agent.load_params(Path(config) if config else None)
+    except ModuleNotFoundError as error:
+        raise ParamError(f"agent {name} needs {error.name}, which is not installed: ./ws run ... agent:={name} "
+                         f"installs requirements-deep.txt (or ./ws setup deep)") from None
+    return agent, agent_params, envs, max_steps or None
 
 
-def _make_env(task: TaskSpec[Any], params: TaskParams, agent: str, envs: int, timeout: float) -> Any:
+def _make_env(task: TaskSpec[Any], params: TaskParams, agent: AgentSpec, envs: int, timeout: float) -> Any:
     """The env(s) to train on: over this master's sim, or N workers with sims of their own."""
     if envs == 1:
         return make_env(task, params=params, backend="ros", ros_timeout=timeout)
     rospy.loginfo("Starting %d envs, each with a ROS master and a sim node of its own", envs)
-    if agent == "qlearn":
-        from .vector import make_vector_env
-        return make_vector_env(task, envs, backend="ros", seed=params.seed, params=params, ros_timeout=timeout)
-    from .deep import make_vec_env
-    return make_vec_env(task, envs, "ros", params.seed, params, ros_timeout=timeout)
+    return agent.make_vector_env(task, envs, backend="ros", seed=params.seed, params=params, ros_timeout=timeout)
 
 
 def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
@@ -147,8 +144,7 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
             rospy.logwarn("stopped before training started: %s", error)
             return INTERRUPTED
         return _fail(str(error))
-    results_name = task.results_name if agent == "qlearn" else f"{task.results_name}-{agent}"
-    checkpoint_name = QTABLE_CHECKPOINT if agent == "qlearn" else DEEP_CHECKPOINT
+    results_name, checkpoint_name = agent.results_name(task), agent.checkpoint_name
     try:
         run = RunDirectory.latest(results_root, results_name, checkpoint_name) if resume else \
             RunDirectory.create(results_root.resolve(), results_name, params.to_mapping(), task.metric_names,
@@ -169,19 +165,10 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
 
         def on_episode(cumulated: float) -> None:
             publish(episode_reward_pub, cumulated)
-        trainer: Any
-        if agent != "qlearn":
-            from .deep import DeepTrainer
-            trainer = DeepTrainer(env, task, params, agent, agent_params, run, log=rospy.loginfo,
-                                  log_episode=log_episode, on_step=on_step, on_episode=on_episode,
-                                  should_stop=should_stop, resume=resume, max_steps=max_steps)
-        else:
-            trainer_type = QLearningTrainer
-            if envs > 1:
-                from .vector_training import VectorQLearningTrainer
-                trainer_type = VectorQLearningTrainer
-            trainer = trainer_type(env, task, params, run, log=rospy.loginfo, log_episode=log_episode,
-                                   on_step=on_step, on_episode=on_episode, should_stop=should_stop, resume=resume)
+        hooks = TrainingHooks(log=rospy.loginfo, log_episode=log_episode, on_step=on_step, on_episode=on_episode,
+                              should_stop=should_stop)
+        trainer = agent.make_trainer(env, task, params, run, hooks, resume=resume, agent_params=agent_params,
+                                     max_steps=max_steps)
         summary = trainer.train()
     except (FileNotFoundError, ValueError) as error:
         return _fail(str(error))

@@ -1,0 +1,148 @@
+"""The agents a run can train, each an `AgentSpec` in one registry (AGENTS), as tasks are TaskSpecs.
+
+A spec says everything the training node, evaluate.py, compare_agents.py, the bench and `./ws` need:
+the params (None: the task's; else a Params type loaded from robot_rl/config/<agent>.yaml), the
+checkpoint file, the results folder, how to make N envs, build the trainer and load a trained run's
+greedy policy, and whether it needs requirements-deep.txt. The implementation is named "module:attr"
+(as gymnasium's entry points) and imported only when used, so that this module never imports torch.
+Adding an agent: one module with its trainer and policy loader, one line in AGENTS.
+
+  python -m robot_rl.agents needs-deep NAME   exit 0 if agent NAME needs requirements-deep.txt (./ws)
+"""
+from __future__ import annotations
+
+import importlib
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Protocol
+
+import numpy as np
+
+from .params import ParamError, Params, TaskParams, load_yaml_file
+from .results import DEEP_CHECKPOINT, QTABLE_CHECKPOINT, RunDirectory
+from .task import TaskSpec, package_path
+
+if TYPE_CHECKING:
+    from .evaluation import TrainedRun
+    from .ledger import TrainingHooks
+
+Policy = Callable[[np.ndarray], int]
+PolicyMaker = Callable[[Any, int], Policy]  # (the env the policy acts in, the seed of its tie breaks) -> policy
+
+
+class Trainer(Protocol):
+    """What every agent's trainer offers the training node."""
+
+    @property
+    def state(self) -> Any:
+        """The run's counters (robot_rl.ledger.TrainingState)."""
+
+    def train(self) -> dict[str, Any]:
+        """Train the remaining episodes; returns the summary written to summary.json."""
+
+
+def _resolve(reference: str) -> Any:
+    module, _, attr = reference.partition(":")
+    return getattr(importlib.import_module(module), attr)
+
+
+@dataclass(frozen=True)
+class AgentSpec:
+    """One agent. The "module:attr" references are imported when used:
+    `trainer` -> make_trainer(spec, env, task, params, run, hooks, resume, agent_params, max_steps),
+    `vector_env` -> a function (task, n, backend=, seed=, params=, ros_timeout=) making N envs,
+    `policy` -> a function (TrainedRun, its checkpoint) -> PolicyMaker, `params` -> a Params type."""
+
+    name: str
+    description: str                 # for the launch files' and the docs' lists of agents
+    checkpoint_name: str             # the run folder's checkpoint file
+    results_suffix: str              # the results folder is the task's results_name + this
+    needs_deep: bool                 # needs requirements-deep.txt (torch, Stable-Baselines3)
+    trainer: str
+    vector_env: str
+    policy: str
+    params: str | None = None        # None: the agent's params are the task's
+
+    def results_name(self, task: TaskSpec[Any]) -> str:
+        return task.results_name + self.results_suffix
+
+    @property
+    def config_path(self) -> Path | None:
+        """robot_rl/config/<agent>.yaml, the agent's default params (None: it has none of its own)."""
+        return None if self.params is None else package_path("robot_rl") / "config" / f"{self.name}.yaml"
+
+    def load_params(self, path: Path | None = None) -> Params | None:
+        """The agent's params from `path` (default: config_path); ParamError names the key. May raise
+        ModuleNotFoundError when the agent needs requirements-deep.txt and it is not installed."""
+        default = self.config_path
+        if default is None:
+            return None
+        path = path or default
+        return self.load_params_from(load_yaml_file(path), str(path))
+
+    def load_params_from(self, values: Any, source: str) -> Params | None:
+        return None if self.params is None else _resolve(self.params).from_mapping(values, source)
+
+    def make_vector_env(self, task: TaskSpec[Any], n: int, backend: str, seed: int, params: TaskParams,
+                        ros_timeout: float) -> Any:
+        """N envs of `task` in worker processes, in the form this agent's trainer takes."""
+        return _resolve(self.vector_env)(task, n, backend=backend, seed=seed, params=params, ros_timeout=ros_timeout)
+
+    def make_trainer(self, env: Any, task: TaskSpec[Any], params: TaskParams, run: RunDirectory,
+                     hooks: TrainingHooks, resume: bool = False, agent_params: Params | None = None,
+                     max_steps: int | None = None) -> Trainer:
+        """The trainer of `env` (one env, or N from make_vector_env); `max_steps`: a deep agent's step budget."""
+        make: Callable[..., Trainer] = _resolve(self.trainer)
+        return make(self, env, task, params, run, hooks, resume, agent_params, max_steps)
+
+    def greedy_policy(self, run: TrainedRun, checkpoint: dict[str, Any]) -> PolicyMaker:
+        """The trained run's greedy policy; ValueError if the checkpoint is not this agent's."""
+        load: Callable[[TrainedRun, dict[str, Any]], PolicyMaker] = _resolve(self.policy)
+        return load(run, checkpoint)
+
+
+AGENTS: dict[str, AgentSpec] = {spec.name: spec for spec in (
+    AgentSpec("qlearn", "tabular Q-learning, the tutorials'", QTABLE_CHECKPOINT, "", needs_deep=False,
+              trainer="robot_rl.training:make_trainer", vector_env="robot_rl.vector:make_vector_env",
+              policy="robot_rl.training:greedy_policy"),
+    AgentSpec("dqn", "Stable-Baselines3's DQN", DEEP_CHECKPOINT, "-dqn", needs_deep=True,
+              trainer="robot_rl.deep:make_trainer", vector_env="robot_rl.deep:make_vec_env",
+              policy="robot_rl.deep:greedy_policy", params="robot_rl.deep:DqnParams"),
+    AgentSpec("ppo", "Stable-Baselines3's PPO", DEEP_CHECKPOINT, "-ppo", needs_deep=True,
+              trainer="robot_rl.deep:make_trainer", vector_env="robot_rl.deep:make_vec_env",
+              policy="robot_rl.deep:greedy_policy", params="robot_rl.deep:PpoParams"),
+)}
+
+
+DEFAULT_AGENT = "qlearn"
+
+
+def find_agent(name: str) -> AgentSpec:
+    try:
+        return AGENTS[name]
+    except (KeyError, TypeError):
+        raise ParamError(f"unknown agent {name!r} (known: {', '.join(AGENTS)})") from None
+
+
+def checkpoint_of(run_dir: Path) -> Path:
+    """The checkpoint file of a run folder: the first agent's in AGENTS' order that is there (none: the first's)."""
+    names = dict.fromkeys(spec.checkpoint_name for spec in AGENTS.values())
+    return next((run_dir / name for name in names if (run_dir / name).is_file()), run_dir / next(iter(names)))
+
+
+def agent_of(checkpoint: dict[str, Any]) -> AgentSpec:
+    """The agent a checkpoint is of: the one it names ("agent", as deep agents' do), else the tabular one."""
+    return find_agent(checkpoint.get("agent", DEFAULT_AGENT))
+
+
+def main(argv: Sequence[str]) -> int:
+    if len(argv) == 2 and argv[0] == "needs-deep":
+        return 0 if argv[1] in AGENTS and AGENTS[argv[1]].needs_deep else 1
+    print("usage: python -m robot_rl.agents needs-deep NAME", file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,234 @@
+"""A training run's bookkeeping, the same for every trainer (tabular, vector tabular, deep).
+
+A trainer keeps its learning loop and hands each finished episode to its `RunLedger`, which counts it
+(`TrainingState`), appends its episodes.csv row with the task's metrics, logs its "EP:" line, writes a
+checkpoint every `checkpoint_every` episodes, logs a progress line every `progress_every_s` seconds
+and, at the end, a last checkpoint and summary.json. When the run cannot go on (Ctrl-C, the sim gone,
+an error), `saved_on_stop` writes a checkpoint and a summary marked incomplete (a failure to write is
+logged, not raised) before the error goes on. What a checkpoint holds, the agent's own words in the
+log lines and its own summary entries come from the trainer (`Learner`).
+"""
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+from .results import EpisodeRecord, RunDirectory, aggregate
+from .task import Episode, MetricValue, TaskSpec
+
+PROGRESS_WINDOW = 50   # episodes the progress line's headline metric is averaged over
+SUMMARY_WINDOW = 100   # episodes summary.json's metrics are averaged over
+
+
+@dataclass
+class TrainingState:
+    """Everything a checkpoint holds besides the agent, so a resumed run continues seamlessly."""
+
+    episode: int = 0                      # episodes completed
+    highest_reward: float = 0.0
+    last_time_steps: list[int] = field(default_factory=list)  # lengths of episodes that ended terminated
+    sim_time: float = 0.0
+    wall_time: float = 0.0
+    env_steps: int = 0
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> TrainingState:
+        state = cls(**values)
+        numbers = (state.highest_reward, state.sim_time, state.wall_time)
+        if not (isinstance(state.episode, int) and state.episode >= 0 and isinstance(state.env_steps, int)
+                and all(isinstance(v, (int, float)) and math.isfinite(v) for v in numbers)
+                and isinstance(state.last_time_steps, list)
+                and all(isinstance(v, int) for v in state.last_time_steps)):
+            raise ValueError(f"the training state {values!r} has wrong types")
+        return state
+
+
+def restored_state(checkpoint: dict[str, Any], checkpoint_format: str, task: TaskSpec[Any]) -> TrainingState:
+    """The counters of a checkpoint of `checkpoint_format` and `task` (ValueError/KeyError/TypeError if not)."""
+    if checkpoint.get("format") != checkpoint_format:
+        raise ValueError(f"format is {checkpoint.get('format')!r}, expected {checkpoint_format!r}")
+    if checkpoint["task"] != task.env_id:
+        raise ValueError(f"it is of task {checkpoint['task']!r}, this run trains {task.env_id!r}")
+    state = TrainingState.from_dict(checkpoint["state"])
+    if checkpoint["episode"] != state.episode:
+        raise ValueError(f"episode {checkpoint['episode']!r} differs from the state's {state.episode}")
+    return state
+
+
+def format_duration(seconds: float) -> str:
+    h, rest = divmod(int(seconds), 3600)
+    m, s = divmod(rest, 60)
+    return f"{h}:{m:02d}:{s:02d}"
+
+
+def _no_op(*_args: Any) -> None:
+    return None
+
+
+def _never() -> bool:
+    return False
+
+
+@dataclass(frozen=True)
+class TrainingHooks:
+    """How a trainer talks to whoever runs it (the training node, a test, the bench)."""
+
+    log: Callable[[str], None] = print
+    log_episode: Callable[[str], None] | None = None   # the "EP:" lines; None: `log`
+    on_step: Callable[[float, float], None] = _no_op   # (reward, return so far) after every env step
+    on_episode: Callable[[float], None] = _no_op       # the return of every episode that ended
+    should_stop: Callable[[], bool] = _never            # asked between steps: end the run early
+    checkpoint_every: int = 10                          # episodes
+    progress_every_s: float = 10.0
+
+
+DEFAULT_HOOKS = TrainingHooks()
+
+
+class Learner(Protocol):
+    """What a RunLedger asks of its trainer."""
+
+    def save_checkpoint(self) -> None:
+        """Write the run's checkpoint (the agent and `state`), each file whole."""
+
+    def episode_label(self, epsilon: float) -> str:
+        """The bracket of an "EP:" line, for an episode that ended with exploration rate `epsilon`."""
+
+    def exploration_label(self) -> str:
+        """The end of a progress line: the exploration rate now (", epsilon 0.771"), or ""."""
+
+    def summary_fields(self) -> dict[str, Any]:
+        """The agent's own entries of summary.json."""
+
+    def closing_lines(self, summary: dict[str, Any], last: Sequence[EpisodeRecord]) -> list[str]:
+        """What to log once summary.json is written (`last`: the episodes it averages over)."""
+
+
+class RunLedger:
+    """The bookkeeping of `run`, trained on `task` for `nepisodes` episodes from `n_envs` envs.
+
+    `count_env_steps`, if given, counts the env steps itself (SB3's num_timesteps, which include the
+    steps of episodes under way); otherwise they are the steps of the episodes that ended."""
+
+    def __init__(self, run: RunDirectory, task: TaskSpec[Any], nepisodes: int, state: TrainingState, learner: Learner,
+                 hooks: TrainingHooks, n_envs: int = 1, count_env_steps: Callable[[], int] | None = None):
+        self.run, self.task, self.nepisodes, self.state, self.learner = run, task, nepisodes, state, learner
+        self.log, self.log_episode = hooks.log, hooks.log_episode or hooks.log
+        self.on_episode, self.should_stop = hooks.on_episode, hooks.should_stop
+        self.checkpoint_every, self.progress_every_s = hooks.checkpoint_every, hooks.progress_every_s
+        self.n_envs, self.count_env_steps = n_envs, count_env_steps
+        self.episodes_per_env = [0] * n_envs
+
+    def start(self) -> None:
+        """Start the clocks (a resumed run's wall time goes on) and read the recent headline metrics."""
+        now = time.monotonic()
+        self._started, self._start_episode = now, self.state.episode
+        self._wall_start, self._next_progress = now - self.state.wall_time, now + self.progress_every_s
+        self.headline: list[MetricValue] = [r.metrics.get(self.task.headline_metric, math.nan)
+                                            for r in self.run.read_episodes()[-PROGRESS_WINDOW:]]
+
+    def episode_done(self, episode: Episode, highest: float, epsilon: float, env_index: int = 0) -> None:
+        """Count an ended episode of env `env_index` (`highest`: its highest return so far, `epsilon` its
+        exploration rate), write its row and its "EP:" line, and a checkpoint when one is due."""
+        state = self.state
+        metrics = self.task.metrics(episode)
+        self.headline = [*self.headline[-PROGRESS_WINDOW + 1:], metrics[self.task.headline_metric]]
+        self.episodes_per_env[env_index] += 1
+        state.highest_reward = max(state.highest_reward, highest)
+        if episode.terminated:
+            state.last_time_steps.append(episode.steps)
+        state.episode += 1
+        if self.count_env_steps is None:
+            state.env_steps += episode.steps
+        state.sim_time += episode.duration
+        state.wall_time = time.monotonic() - self._wall_start
+        self.run.append_episode(EpisodeRecord(episode=state.episode, steps=episode.steps, return_=episode.return_,
+                                              epsilon=epsilon, sim_time=state.sim_time, wall_time=state.wall_time,
+                                              metrics=metrics))
+        self.on_episode(episode.return_)
+        per_env = f" - env {env_index + 1}/{self.n_envs} (episodes per env: " \
+                  f"{', '.join(map(str, self.episodes_per_env))})" if self.n_envs > 1 else ""
+        self.log_episode(f"EP: {state.episode} - [{self.learner.episode_label(epsilon)}] - Reward: "
+                         f"{episode.return_:.1f}     Time: {format_duration(state.wall_time)}{per_env}")
+        if state.episode % self.checkpoint_every == 0:
+            self.checkpoint()
+
+    def checkpoint_due(self) -> bool:
+        """Whether the next episode that ends brings a checkpoint."""
+        return (self.state.episode + 1) % self.checkpoint_every == 0
+
+    def sync_env_steps(self) -> None:
+        if self.count_env_steps is not None:
+            self.state.env_steps = self.count_env_steps()
+
+    def checkpoint(self) -> None:
+        """The trainer's checkpoint, then learning_curve.png."""
+        self.sync_env_steps()
+        self.learner.save_checkpoint()
+        self.run.write_learning_curve(self.task.headline_metric)
+
+    def log_progress_if_due(self) -> None:
+        """A progress line (episodes, rate, ETA, the headline metric) every progress_every_s seconds."""
+        now = time.monotonic()
+        if now < self._next_progress:
+            return
+        self._next_progress = now + self.progress_every_s
+        self.sync_env_steps()
+        state, total = self.state, self.nepisodes
+        done = state.episode - self._start_episode
+        eta = (total - state.episode) * (now - self._started) / done if done else math.nan
+        name, value = next(iter(aggregate({self.task.headline_metric: self.headline}).items()))
+        self.log(f"progress: episode {state.episode}/{total} ({100.0 * state.episode / total:.0f} %), "
+                 f"{state.env_steps / max(now - self._wall_start, 1e-9):.0f} env steps/s, ETA {format_duration(eta)}, "
+                 f"{name} over the last {len(self.headline)} episodes: {value:.3g}{self.learner.exploration_label()}")
+
+    @contextmanager
+    def saved_on_stop(self, rollback: Callable[[], None] = _no_op) -> Iterator[None]:
+        """On any error in the block: `rollback` (back to where the counters are), a checkpoint and a
+        summary marked incomplete ("interrupted" on Ctrl-C or a stop request, else "error: ..."), then
+        the error goes on."""
+        try:
+            yield
+        except BaseException as error:
+            rollback()
+            self._save_quietly("interrupted" if isinstance(error, KeyboardInterrupt) or self.should_stop()
+                               else f"error: {error}")
+            raise
+
+    def _save_quietly(self, reason: str) -> None:
+        """Checkpoint and summary (incomplete, `reason`); a failure to write is logged, not raised."""
+        try:
+            self.checkpoint()
+            self.finish(stopped=reason)
+        except (OSError, ValueError) as error:  # the original error matters more; say why nothing was saved
+            self.log(f"could not save the run after episode {self.state.episode}: {error}")
+
+    def close(self, done: bool, stopped: str | None = None) -> dict[str, Any]:
+        """The last checkpoint and summary.json: complete if `done` and not `stopped`, else "interrupted"
+        or `stopped`. Returns the summary."""
+        self.state.wall_time = time.monotonic() - self._wall_start
+        self.checkpoint()
+        return self.finish(stopped=None if done and stopped is None else stopped or "interrupted")
+
+    def finish(self, stopped: str | None = None) -> dict[str, Any]:
+        """summary.json (`stopped` says why a run ended before its last episode), then the trainer's closing lines."""
+        self.sync_env_steps()
+        state = self.state
+        last = self.run.read_episodes()[-SUMMARY_WINDOW:]
+        metrics = aggregate({name: [r.metrics[name] for r in last] for name in self.run.metric_names})
+        summary = {"task": self.task.env_id, "robot": self.run.robot, "run": self.run.name,
+                   "episodes": state.episode, "nepisodes": self.nepisodes, "highest_reward": state.highest_reward,
+                   **self.learner.summary_fields(),
+                   "mean_return_last_100": aggregate({"return": [r.return_ for r in last]})["mean_return"],
+                   "metrics_last_100": metrics, "headline_metric": self.task.headline_metric,
+                   "env_steps": state.env_steps, "sim_time_s": state.sim_time, "wall_time_s": state.wall_time,
+                   "env_steps_per_s": state.env_steps / state.wall_time if state.wall_time > 0 else None,
+                   "completed": stopped is None, "stopped": stopped}
+        self.run.write_summary(summary)
+        for line in self.learner.closing_lines(summary, last):
+            self.log(line)
+        return summary

@@ -1,0 +1,71 @@
+"""The agent registry (robot_rl.agents): names, default configs, results folders, checkpoints, the
+launch files' list of agents and the `needs-deep` question ./ws asks. No ROS master."""
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from robot_rl.agents import AGENTS, agent_of, checkpoint_of, find_agent, main
+from robot_rl.params import ParamError, Params
+from robot_rl.results import DEEP_CHECKPOINT, QTABLE_CHECKPOINT
+
+ROOT = Path(__file__).resolve().parents[2]
+LAUNCH_FILES = ["robot_rl/launch/train.launch", "moving_cube_training/launch/main.launch",
+                "hopper_training/launch/main.launch"]
+
+
+def test_find_agent_and_the_unknown_agent_message():
+    assert [find_agent(name).name for name in ("qlearn", "dqn", "ppo")] == ["qlearn", "dqn", "ppo"]
+    assert list(AGENTS) == ["qlearn", "dqn", "ppo"]
+    with pytest.raises(ParamError, match=r"^unknown agent 'x' \(known: qlearn, dqn, ppo\)$"):
+        find_agent("x")
+
+
+@pytest.mark.parametrize("name", list(AGENTS))
+def test_every_agent_has_a_loadable_default_config(name):
+    agent = find_agent(name)
+    params = agent.load_params()
+    if agent.params is None:
+        assert params is None and agent.config_path is None
+        assert agent.load_params(Path("/nonexistent.yaml")) is None, "the task's params: no file of its own read"
+    else:
+        assert isinstance(params, Params) and agent.config_path.name == f"{name}.yaml"
+        assert agent.load_params_from(params.to_mapping(), "test") == params
+
+
+def test_results_folders_and_checkpoints():
+    assert {name: spec.results_name(ONE_DISK_WALK) for name, spec in AGENTS.items()} == \
+        {"qlearn": "moving_cube", "dqn": "moving_cube-dqn", "ppo": "moving_cube-ppo"}
+    assert {name: spec.checkpoint_name for name, spec in AGENTS.items()} == \
+        {"qlearn": QTABLE_CHECKPOINT, "dqn": DEEP_CHECKPOINT, "ppo": DEEP_CHECKPOINT}
+    assert {name: spec.needs_deep for name, spec in AGENTS.items()} == {"qlearn": False, "dqn": True, "ppo": True}
+
+
+def test_a_run_folder_s_checkpoint_and_agent(tmp_path):
+    assert checkpoint_of(tmp_path) == tmp_path / QTABLE_CHECKPOINT, "nothing there: the tabular checkpoint"
+    (tmp_path / DEEP_CHECKPOINT).write_text("{}")
+    assert checkpoint_of(tmp_path) == tmp_path / DEEP_CHECKPOINT
+    (tmp_path / QTABLE_CHECKPOINT).write_text("{}")
+    assert checkpoint_of(tmp_path) == tmp_path / QTABLE_CHECKPOINT, "a Q-table first"
+    assert agent_of({"task": "MovingCubeOneDiskWalk-v0"}) is AGENTS["qlearn"]
+    assert agent_of({"agent": "ppo"}) is AGENTS["ppo"]
+    with pytest.raises(ParamError, match="unknown agent 'a2c'"):
+        agent_of({"agent": "a2c"})
+
+
+@pytest.mark.parametrize("path", LAUNCH_FILES)
+def test_the_launch_files_list_every_agent(path):
+    doc = re.search(r'<arg name="agent"[^>]* doc="([^"]*)"', (ROOT / path).read_text())[1]
+    assert all(re.search(rf"\b{name}\b", doc) for name in AGENTS), doc
+    assert all(spec.description.split(", ")[0] in doc for spec in AGENTS.values()), doc
+
+
+def test_needs_deep_answers_by_exit_code():
+    assert [main(["needs-deep", name]) for name in ("qlearn", "dqn", "ppo", "x")] == [1, 0, 0, 1]
+    assert main([]) == 2
+    done = subprocess.run([sys.executable, "-c", "import sys, robot_rl.agents; "
+                           "sys.exit(robot_rl.agents.main(['needs-deep', 'dqn']) or 'torch' in sys.modules)"])
+    assert done.returncode == 0, "the registry answers without importing torch"
