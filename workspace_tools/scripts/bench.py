@@ -214,9 +214,10 @@ def worker_qlearn(robot: str, n: int, steps: int, running_step: float) -> dict:
     """robot_rl.vector_training's tabular Q-learning from n envs over ROS, as `./ws run envs:=N` trains
     (episodes.csv written) but with no log lines and no checkpoint until the end, which is not timed:
     env steps/s for `steps` env steps."""
+    from robot_rl.agents import find_agent
+    from robot_rl.ledger import TrainingHooks
     from robot_rl.results import RunDirectory
     from robot_rl.vector import make_vector_env
-    from robot_rl.vector_training import VectorQLearningTrainer
     task = ROBOTS[robot].task
     params = _params(robot, running_step).with_changes("bench", nepisodes=10**9)
     env: Any = make_vector_env(task, n, backend="ros", seed=0, params=params)  # the trainer takes it as its env
@@ -230,9 +231,9 @@ def worker_qlearn(robot: str, n: int, steps: int, running_step: float) -> dict:
     try:
         with tempfile.TemporaryDirectory() as results:
             run = RunDirectory.create(Path(results), robot, params.to_mapping(), task.metric_names, "bench")
-            VectorQLearningTrainer(env, task, params, run, log=lambda _: None, log_episode=lambda _: None,
-                                   on_step=on_step, should_stop=lambda: taken[0] >= steps,
-                                   checkpoint_every=10**9).train()
+            hooks = TrainingHooks(log=lambda _: None, on_step=on_step, should_stop=lambda: taken[0] >= steps,
+                                  checkpoint_every=10**9)
+            find_agent("qlearn").make_trainer(env, task, params, run, hooks).train()  # VectorQLearningTrainer
     finally:
         env.close()
     return {"steps_per_s": (taken[0] - 1) / (last[0] - first[0])}
@@ -242,7 +243,8 @@ def worker_deep(robot: str, backend: str, steps: int, running_step: float) -> di
     """Stable-Baselines3 DQN (robot_rl/config/dqn.yaml) learning `steps` env steps on one env."""
     from stable_baselines3.common.vec_env import DummyVecEnv
 
-    from robot_rl.deep import build_model, load_agent_params
+    from robot_rl.agents import find_agent
+    from robot_rl.deep import NetworkParams, build_model
     if backend == "ros":
         import rospy
         rospy.init_node("bench_deep_client")
@@ -251,7 +253,9 @@ def worker_deep(robot: str, backend: str, steps: int, running_step: float) -> di
     params = _params(robot, running_step)
     env = _make_env(robot, backend, running_step)
     try:
-        model = build_model("dqn", load_agent_params("dqn"), DummyVecEnv([lambda: env]), params.gamma, 0)
+        agent_params = find_agent("dqn").load_params()
+        assert isinstance(agent_params, NetworkParams)
+        model = build_model(agent_params, DummyVecEnv([lambda: env]), params.gamma, 0)
         start = time.perf_counter()
         model.learn(total_timesteps=steps)
         elapsed = time.perf_counter() - start
