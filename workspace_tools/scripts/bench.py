@@ -233,7 +233,7 @@ def worker_qlearn(robot: str, n: int, steps: int, running_step: float) -> dict:
             run = RunDirectory.create(Path(results), robot, params.to_mapping(), task.metric_names, "bench")
             hooks = TrainingHooks(log=lambda _: None, on_step=on_step, should_stop=lambda: taken[0] >= steps,
                                   checkpoint_every=10**9)
-            find_agent("qlearn").make_trainer(env, task, params, run, hooks).train()  # VectorQLearningTrainer
+            find_agent("qlearn").make_trainer(env, task, params, run, hooks).train()  # N envs: the vector trainer
     finally:
         env.close()
     return {"steps_per_s": (taken[0] - 1) / (last[0] - first[0])}

@@ -11,7 +11,7 @@ were different states). Here the key is made of bins of:
 - yaw: a dead band of max_yaw_angle/4 and tails beyond 0.75 max_yaw_angle: each landing turns the
   cube a little, and how far it has turned decides which moves are still safe.
 With only wheel speed, y speed and yaw (the tutorial's choice) the start state and the state right
-after a violent stop look alike, and the greedy policy learned to fall (measured: see README).
+after a violent stop look alike, and the greedy policy learned to fall.
 """
 from __future__ import annotations
 
