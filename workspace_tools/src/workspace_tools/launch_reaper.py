@@ -24,9 +24,9 @@ GRACE_S = 5.0     # between SIGTERM and SIGKILL
 SWEEPS = 5        # a process may start another while the first are ending: look again
 
 
-def marked_processes(mark: str) -> list[int]:
-    """Pids of the processes (other than this one) whose environment carries `mark`."""
-    wanted = f"{MARK_VARIABLE}={mark}".encode()
+def processes_with(variable: str, value: str) -> list[int]:
+    """Pids of the processes (other than this one) whose environment sets `variable` to `value`."""
+    wanted = f"{variable}={value}".encode()
     pids = []
     for entry in os.scandir("/proc"):
         if entry.name.isdigit() and int(entry.name) != os.getpid():
@@ -50,12 +50,12 @@ def _signal_all(pids: list[int], signum: int) -> None:
 def end_marked_processes(mark: str) -> None:
     """SIGTERM every process carrying `mark`, SIGKILL what is left after GRACE_S; bounded."""
     for _ in range(SWEEPS):
-        pids = marked_processes(mark)
+        pids = processes_with(MARK_VARIABLE, mark)
         if not pids:
             return
         _signal_all(pids, signal.SIGTERM)
         deadline = time.monotonic() + GRACE_S
-        while (pids := marked_processes(mark)) and time.monotonic() < deadline:
+        while (pids := processes_with(MARK_VARIABLE, mark)) and time.monotonic() < deadline:
             time.sleep(0.1)  # processes we did not start: no notification of their end exists
         _signal_all(pids, signal.SIGKILL)
 

@@ -13,21 +13,12 @@ from pathlib import Path
 import rosgraph
 
 from robot_rl.private_sim import free_port, stop_process
+from workspace_tools.launch_reaper import processes_with
 
 
 def processes_using(uri: str) -> list[int]:
     """Pids of the processes (other than this one) whose environment points ROS_MASTER_URI at `uri`."""
-    wanted = f"ROS_MASTER_URI={uri}".encode()
-    pids = []
-    for entry in os.scandir("/proc"):
-        if entry.name.isdigit() and int(entry.name) != os.getpid():
-            try:
-                environ = Path(entry.path, "environ").read_bytes().split(b"\0")
-            except OSError:  # gone, or a kernel thread
-                continue
-            if wanted in environ:
-                pids.append(int(entry.name))
-    return pids
+    return processes_with("ROS_MASTER_URI", uri)
 
 
 def stop(process: subprocess.Popen, timeout: float = 10.0) -> None:
