@@ -9,6 +9,7 @@
 #   ./ws rviz [cube|hopper] [NAME:=VALUE ...] set up with rviz, then the robot's sim running, seen in rviz
 #   ./ws plot [NAMESPACE] [--output PNG]      a live plot of the reward topics (rqt_plot is not in Debian 12)
 #   ./ws test [PYTEST ARGS]     set up, then the linters and every test (pytest + rostest)
+#   ./ws test --quick [PYTEST ARGS]  pytest alone: no linters, no display packages, the deep agents' only if the tests use them
 #   ./ws lint                   set up, then only the linters (ruff, mypy, catkin_lint, roslaunch-check)
 #   ./ws bench [--reps N] [--sections S,...] [--running-step ROBOT=S] [--markdown]  set up (with the deep agents), then the benchmark (--markdown: also docs/performance.md)
 #   ./ws python [ARGS...]       python inside the workspace environment (the venv, the devel space)
@@ -140,7 +141,7 @@ launch_of() {
 }
 
 usage() {
-  sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'
 }
 
 # The usage, then each training launch file's arguments, as roslaunch itself lists them.
@@ -242,16 +243,27 @@ case "$command" in
     enter_environment
     lint ;;
   test)
-    setup
-    ensure_apt_packages "${RVIZ_APT_PACKAGES[@]}" "${PLOT_APT_PACKAGES[@]}" "${TEST_APT_PACKAGES[@]}"
-    private_master
-    enter_environment
-    ensure_requirements requirements-deep.txt
-    lint
+    quick=false
+    if [ "${1:-}" = --quick ]; then quick=true; shift; fi
     cd "$ROOT"
     # The whole test folder unless the arguments name test files or folders themselves.
-    paths=(test)
-    for arg in "$@"; do [[ "$arg" != -* && -e "${arg%%::*}" ]] && paths=(); done
+    paths=(test) named=()
+    for arg in "$@"; do [[ "$arg" != -* && -e "${arg%%::*}" ]] && named+=("${arg%%::*}"); done
+    [ ${#named[@]} -eq 0 ] || paths=()
+    setup
+    if [ "$quick" = true ]; then
+      # pytest alone (requirements.txt has it): no linters, no display packages; the deep agents' packages only
+      # for tests that use them.
+      if grep -rlqE 'robot_rl\.deep|stable_baselines3|torch' --include='*.py' "${paths[@]}" "${named[@]}"; then
+        ensure_requirements requirements-deep.txt
+      fi
+    else
+      ensure_apt_packages "${RVIZ_APT_PACKAGES[@]}" "${PLOT_APT_PACKAGES[@]}" "${TEST_APT_PACKAGES[@]}"
+      ensure_requirements requirements-deep.txt
+    fi
+    private_master
+    enter_environment
+    [ "$quick" = true ] || lint
     exec python -m pytest -p no:cacheprovider "$@" "${paths[@]}" ;;
   bench)
     setup

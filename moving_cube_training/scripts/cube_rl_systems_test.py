@@ -5,7 +5,10 @@ and 0 rad/s, two seconds apart, then log the cube state, done and reward.
     roslaunch pybullet_sim cube_sim.launch paused:=false      # the sim, running
     rosrun moving_cube_training cube_rl_systems_test.py
 
-or both at once: roslaunch moving_cube_training systems_test.launch (exits when this script is done).
+or both at once, ending when this script is done and with its exit code:
+
+    rosrun workspace_tools roslaunch_checked.py moving_cube_training systems_test.launch
+
 Not in the seed: the last line is a verdict, "PASS: ..." when the wheel reached each commanded speed
 (within 10 %) 2 s after the command, "FAIL: ..." otherwise or when the sim does not answer; the
 exit code is 0 on PASS, 1 on FAIL.

@@ -15,9 +15,6 @@ from workspace_tools.paths import PROGRAMS
 from workspace_tools.processes import Processes, launch_args
 
 HUMAN = PROGRAMS / "human_render.py"
-# Debian's rviz asks rospack for the media_export package (not packaged in Debian) and says so on every
-# start; nothing else in an rviz log may say error.
-DEBIAN_RVIZ_NOISE = ("[rospack] Error: no such package media_export", "[librospack]: error while executing command")
 SHOW_ROBOT_TIMEOUT = 120.0  # wall s: rviz starts on a software OpenGL (llvmpipe) on 2 busy cores
 
 
@@ -78,8 +75,9 @@ def test_rviz_config_loads_without_errors_and_shows_the_robot(ros_master, xvfb, 
     ImageGrab.Image.fromarray(image).save(screenshot)
     output = log.read_text()
     assert launch.poll() is None and "has died" not in output, output[-3000:]
-    errors = [line for line in output.splitlines()
-              if re.search(r"error|fatal", line, re.I) and not line.startswith(DEBIAN_RVIZ_NOISE)]
+    # Nothing in an rviz log may say error; Debian's rviz asks rospack for media_export on every start, which
+    # the workspace provides (Debian does not): "[rospack] Error: no such package media_export" otherwise.
+    errors = [line for line in output.splitlines() if re.search(r"error|fatal", line, re.I)]
     assert errors == [], f"rviz or a node logged errors (screenshot {screenshot}):\n" + "\n".join(errors)
     assert "process[rviz-" in output and "process[contact_markers-" in output
 

@@ -15,10 +15,13 @@ import textwrap
 import xml.etree.ElementTree as ElementTree
 from pathlib import Path
 
+import numpy as np
 import pytest
 import rospkg
+from PIL import Image
 
 from workspace_tools.paths import REPO
+from workspace_tools.processes import Processes
 
 README = REPO / "README.md"
 PAGES = [README, REPO / "CHANGELOG.md", REPO / "pybullet_sim" / "README.md", *sorted((REPO / "docs").glob("*.md"))]
@@ -116,6 +119,8 @@ def check_command(words: list[str]) -> None:
         check_ws(words)
     elif words[0] == "roslaunch":
         check_launch(words[2:] if words[1] == "--ros-args" else words[1:])
+    elif words[0] == "rosrun" and words[1:3] == ["workspace_tools", "roslaunch_checked.py"]:
+        check_launch(words[3:])
     elif words[0] == "rosrun":
         check_options(words[1], words[2], words[3:])
     elif words[0] == "rostest":
@@ -166,16 +171,42 @@ def test_the_python_snippet_runs_as_pasted():
     assert "reward_distance" in result.stdout and "reward_speed" in result.stdout
 
 
-def test_the_frames_snippet_makes_the_pictures(tmp_path):
-    """docs/training.md's snippet that made docs/cube.png and docs/monoped.png, run where it writes nothing of ours."""
-    blocks = [block for block in code_blocks((REPO / "docs" / "training.md").read_text()) if "docs/cube.png" in block]
-    assert len(blocks) == 1, "docs/training.md's snippet that made the frames"
-    (tmp_path / "docs").mkdir()
-    result = subprocess.run([sys.executable, "-c", blocks[0]], cwd=tmp_path, capture_output=True, text=True,
-                            timeout=300)
-    assert result.returncode == 0, result.stderr[-3000:]
-    for name in ("cube.png", "monoped.png"):
-        assert (tmp_path / "docs" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+def python_programs(page: Path) -> list[str]:
+    """The page's ```python blocks meant to be run: those with an import statement, excerpts of the code aside
+    (architecture.md's other block is one line of a registry, not a program)."""
+    blocks = re.findall(r"(<!-- excerpt: \S+ -->\n)? *```python\n(.*?)^ *```", page.read_text(), re.M | re.S)
+    return [textwrap.dedent(code) for excerpt, code in blocks
+            if not excerpt and re.search(r"^(import|from) \w", textwrap.dedent(code), re.M)]
+
+
+PROGRAMS = [(page, code) for page in PAGES for code in python_programs(page)]
+
+
+def test_the_pages_have_programs_to_run():
+    assert len(PROGRAMS) >= 2, "docs/training.md's vector env and frames snippets"
+
+
+@pytest.mark.parametrize("page,code", PROGRAMS, ids=[f"{page_id(p)}: {c.splitlines()[0][:50]}" for p, c in PROGRAMS])
+def test_every_python_program_runs_saved_to_a_file(page, code, tmp_path):
+    """Each program saved as a file and run with python, from an empty folder, as a user would; a picture it
+    writes that docs/ shows too must be that picture."""
+    program = tmp_path / "program" / "snippet.py"
+    program.parent.mkdir()
+    program.write_text(code)
+    runner = Processes(tmp_path, cwd=program.parent)
+    try:
+        result = runner.run([sys.executable, program.name], timeout=300)
+    finally:
+        runner.close()
+    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-3000:]
+    assert "Traceback" not in result.stderr, result.stderr[-3000:]
+    for picture in program.parent.glob("*.png"):
+        shown = REPO / "docs" / picture.name
+        assert shown.exists(), f"{page_id(page)}: the program writes {picture.name}, which docs/ does not show"
+        made, committed = (np.asarray(Image.open(path).convert("RGB"), dtype=int) for path in (picture, shown))
+        assert made.shape == committed.shape, f"{picture.name}: {made.shape} made, docs/ has {committed.shape}"
+        differing = (np.abs(made - committed).max(axis=2) > 32).mean()
+        assert differing < 0.002, f"{picture.name}: {differing:.1%} of its pixels differ from docs/{picture.name}"
 
 
 def test_the_code_excerpts_are_the_code():
