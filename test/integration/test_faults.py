@@ -338,6 +338,32 @@ def test_resume_of_another_task_is_refused(master, trained_run, tmp_path):
     assert run_files(results) == before
 
 
+def test_two_resumes_of_one_run_at_once_one_is_refused_and_the_run_stays_whole(tmp_path, trained_run):
+    """Two `resume:=true` of one run folder, each on its own master: the one that comes second is refused
+    with one line (the run's lock), the other finishes; every episode is in episodes.csv once."""
+    results, config = copy_run(trained_run, tmp_path)
+    masters = [RosMaster(tmp_path / f"ros{i}", cwd=REPO) for i in range(2)]
+    logs = [tmp_path / f"run{i}.log" for i in range(2)]
+    try:
+        launches = []
+        for m, log in zip(masters, logs):
+            with open(log, "w") as out:
+                launches.append(m.start([*CUBE_TRAINING, f"config:={config}", f"results_dir:={results}",
+                                         "resume:=true", "nepisodes:=80"], stdout=out, stderr=subprocess.STDOUT))
+        codes = [launch.wait(300) for launch in launches]
+        assert all(m.leftovers() == [] for m in masters)
+    finally:
+        for m in masters:
+            m.close()
+    outputs = [log.read_text() for log in logs]
+    assert sorted(codes) == [0, 1], (codes, [o[-2000:] for o in outputs])
+    refused = outputs[codes.index(1)]
+    line = one_line(refused, "another process is training this run")
+    assert "[FATAL]" in line and str((results / "moving_cube" / "latest").resolve()) in line
+    one_line(outputs[codes.index(0)], "Training complete: 80 episodes")
+    assert episodes(results) == list(range(1, 81)), "every episode once"
+
+
 @pytest.mark.parametrize("damage, expected", [
     ("missing", "no checkpoint"),
     ("random_bytes", "not a checkpoint (not UTF-8 text)"),
