@@ -574,6 +574,49 @@ def test_a_frozen_sim_stops_training_within_the_timeout(master, tmp_path):
     assert summary["episodes"] == episodes(tmp_path / "results")[-1]
 
 
+CHANGE_THE_SIM = {
+    "time_step": """import rospy
+from gazebo_msgs.srv import GetPhysicsProperties, SetPhysicsProperties
+current = rospy.ServiceProxy("/gazebo/get_physics_properties", GetPhysicsProperties)()
+answer = rospy.ServiceProxy("/gazebo/set_physics_properties", SetPhysicsProperties)(
+    0.01, current.max_update_rate, current.gravity, current.ode_config)
+assert answer.success, answer.status_message
+""",
+    "reset_simulation": """import rospy
+from std_srvs.srv import Empty
+for _ in range(3):
+    rospy.ServiceProxy("/gazebo/reset_simulation", Empty)()
+"""}
+
+
+@pytest.mark.parametrize("change, expected", [
+    ("time_step", "its time step is now 0.01 s, this env started with 0.001 s"),
+    ("reset_simulation", "its time went back from"),
+])
+def test_a_sim_changed_from_outside_stops_training_with_one_line_then_resumes(master, tmp_path, change, expected):
+    """Another node sets the sim's time step, or resets it, mid-run: each step would cover another span
+    of sim time (or time goes back) and the run would go on regardless. The next step says so."""
+    log = tmp_path / "run.log"
+    launch = start_cube_training(master, tmp_path, log, nepisodes=400)
+    wait_for(logged_episode(log, 12), 120, "episode 12")
+    script = tmp_path / "change.py"
+    script.write_text(CHANGE_THE_SIM[change])
+    changed = master.run([sys.executable, str(script)], timeout=60)
+    assert changed.returncode == 0, changed.stderr[-3000:]
+    assert launch.wait(60) == 1, log.read_text()[-3000:]
+    line = one_line(log.read_text(), "the sim was changed from outside")
+    assert "[FATAL]" in line and expected in line and "continue with resume:=true" in line, line
+    results = tmp_path / "results"
+    summary = json.loads((results / "moving_cube" / "latest" / "summary.json").read_text())
+    assert summary["completed"] is False and "changed from outside" in summary["stopped"]
+    saved = json.loads((results / "moving_cube" / "latest" / "qtable.json").read_text())["episode"]
+    assert saved == summary["episodes"] >= 12 and episodes(results) == list(range(1, saved + 1))
+    resumed = master.run([*CUBE_TRAINING, f"config:={tmp_path / 'config.yaml'}", f"results_dir:={results}",
+                          "resume:=true", f"nepisodes:={saved + 3}"], timeout=180)
+    assert resumed.returncode == 0, (resumed.stdout + resumed.stderr)[-3000:]
+    assert episodes(results) == list(range(1, saved + 4))
+
+
 def test_sigkill_of_the_trainer_between_checkpoints_then_resume(master, tmp_path):
     log = tmp_path / "run.log"
     launch = start_cube_training(master, tmp_path, log, nepisodes=40)
