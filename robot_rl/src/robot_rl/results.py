@@ -41,6 +41,10 @@ class RunLockedError(ValueError):
     """Another process trains this run folder."""
 
 
+class RunFileError(ValueError):
+    """A file of the run beside the checkpoint (a deep agent's model.zip) cannot be used; str() names it."""
+
+
 @dataclass(frozen=True)
 class EpisodeRecord:
     """One episodes.csv row; `return_` is the "return" column. Times are seconds since run start."""
@@ -160,6 +164,17 @@ class RunDirectory:
         return run
 
     @classmethod
+    def named(cls, root: StrPath, robot: str, name: str, checkpoint_name: str = QTABLE_CHECKPOINT) -> RunDirectory:
+        """The run <root>/<robot>/<name>; FileNotFoundError naming the runs there if there is none."""
+        _check_name("run", name)
+        robot_dir = Path(root) / robot
+        if not (robot_dir / name).is_dir():
+            runs = sorted(p.name for p in robot_dir.iterdir() if p.is_dir() and p.name != LATEST) \
+                if robot_dir.is_dir() else []
+            raise FileNotFoundError(f"no run {name!r} under {robot_dir} (runs: {', '.join(runs) or 'none'})")
+        return cls(robot_dir / name, checkpoint_name)
+
+    @classmethod
     def latest(cls, root: StrPath, robot: str, checkpoint_name: str = QTABLE_CHECKPOINT) -> RunDirectory:
         """The run <root>/<robot>/latest points to."""
         robot_dir = Path(root) / robot
@@ -250,7 +265,8 @@ class RunDirectory:
         return state
 
     def prepare_resume(self, restore: Callable[[dict[str, Any]], T]) -> T:
-        """Load the checkpoint and restore it with `restore` (which raises ValueError on anything wrong),
+        """Load the checkpoint and restore it with `restore` (which raises ValueError on anything wrong,
+        naming the checkpoint, or a RunFileError naming another file of the run),
         then drop episodes.csv rows logged after it (they will be re-run). Nothing is written unless
         the whole checkpoint restored. Takes the run's lock first (RunLockedError if another process
         trains it)."""
@@ -258,6 +274,8 @@ class RunDirectory:
         state = self.load_checkpoint()
         try:
             restored = restore(state)
+        except RunFileError:
+            raise
         except (KeyError, TypeError, ValueError) as error:
             reason = f"missing {error}" if isinstance(error, KeyError) else str(error)
             raise ValueError(f"{self.checkpoint_json}: not a usable checkpoint: {reason}") from None
