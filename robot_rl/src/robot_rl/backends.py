@@ -170,13 +170,14 @@ class RosBackend(Backend):
     reset_simulation restarts it at 0. A sim changed from outside (its time step set, or reset, by
     another node) raises a SimConnectionError saying what changed."""
 
-    def __init__(self, robot: RobotSpec, timeout: float = 10.0, sim_node: str = SIM_NODE):
+    def __init__(self, robot: RobotSpec, timeout: float = 10.0, sim_node: str = SIM_NODE, hint: str | None = None):
+        """`hint`: what to check when the sim does not answer (default: whether its launch file runs)."""
         import rospy
 
         from pybullet_sim.client import SimConnection, SimConnectionError
 
         init_ros_node("robot_rl_env")
-        hint = f"is the sim node running? (e.g. {robot.sim_launch})"
+        hint = hint or f"is the sim node running? (e.g. {robot.sim_launch})"
         self.timeout = timeout
         self.sim = SimConnection(timeout, hint)  # waits (bounded) for the sim node's services
         try:
@@ -238,8 +239,8 @@ class RosBackend(Backend):
     def _current_time_step(self) -> float | None:
         """The sim's time step now (Gazebo's get_physics_properties), or None if it does not answer."""
         import rospy
-        from gazebo_msgs.srv import GetPhysicsProperties
 
+        from gazebo_msgs.srv import GetPhysicsProperties
         from pybullet_sim.client import PHYSICS_SERVICE
         proxy = rospy.ServiceProxy(PHYSICS_SERVICE, GetPhysicsProperties)
         try:

@@ -45,6 +45,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from .backends import RosBackend
 from .params import TaskParams
 from .private_sim import PrivateSim, set_pdeathsig
 from .task import TaskSpec, make_env
@@ -91,7 +92,10 @@ def _worker_env(index: int, recipe: WorkerRecipe) -> tuple[gymnasium.Env[Any, An
                           ROS_LOG_DIR=str(sim.log_dir), ROS_HOME=str(sim.log_dir))
         import rospy
         rospy.init_node(f"robot_rl_worker{index}", disable_signals=True)  # the parent decides when a worker ends
-        env = make_env(recipe.task, params=recipe.params, backend="ros", ros_timeout=recipe.ros_timeout,
+        backend = RosBackend(recipe.task.robot, timeout=recipe.ros_timeout,
+                             hint=f"the worker's sim node (pid {sim.processes[-1].pid}) is gone or frozen: its log "
+                                  f"is {sim.log_dir / 'sim_node.log'}")
+        env = make_env(recipe.task, params=recipe.params, backend=backend, ros_timeout=recipe.ros_timeout,
                        max_episode_steps=recipe.max_episode_steps, **recipe.env_kwargs)
     except BaseException:
         sim.close()
