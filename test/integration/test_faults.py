@@ -7,9 +7,11 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -784,22 +786,39 @@ def test_a_killed_worker_sim_stops_training_with_one_line_naming_its_log(master,
     line = one_line(log.read_text(), "training stopped: worker")
     assert "[FATAL]" in line and "is gone or frozen: its log is" in line and "sim_node.log" in line, line
     assert "roslaunch pybullet_sim" not in line and "continue with resume:=true" in line, line
+    sim_log = Path(re.search(r"its log is (\S+sim_node\.log)", line).group(1))
+    assert sim_log.is_file(), "the log the line names is kept"
+    shutil.rmtree(sim_log.parent.parent)  # the failed workers' folder, kept for the user
     wait_for(lambda: not any(Path(f"/proc/{pid}").exists() for pid in [trainer, *sims]), 30,
              "the end of the trainer and its workers' sim nodes")
     summary = json.loads((tmp_path / "results" / "moving_cube" / "latest" / "summary.json").read_text())
     assert summary["completed"] is False and summary["episodes"] == episodes(tmp_path / "results")[-1] >= 12
 
 
-def test_ctrl_c_while_the_workers_start_ends_the_run_with_no_traceback(master, tmp_path):
-    """SIGINT to the launch while the envs:=2 workers start their masters and sims (the workers' masters
-    get it too, and refuse connections): exit 130, no traceback, no process left."""
+def test_ctrl_c_while_the_workers_start_ends_the_run_with_no_traceback(tmp_path):
+    """Ctrl-C (SIGINT to the launch's process group, as a terminal sends it) while the envs:=2 workers start
+    their masters and sims, the launch having started its own master as ./ws run's does: the master goes
+    first and refuses the node's calls. Exit 130, no traceback, no process left."""
+    uri = f"http://127.0.0.1:{free_port()}"
+    runner = Processes(tmp_path, cwd=REPO, ROS_MASTER_URI=uri, ROS_HOSTNAME="127.0.0.1", ROS_IP="127.0.0.1")
     log = tmp_path / "run.log"
-    launch = start_vector_training(master, tmp_path, log)
-    wait_for(lambda: "Starting 2 envs" in log.read_text(), 120, "the training node starting its workers")
-    os.killpg(launch.pid, signal.SIGINT)  # as a terminal's Ctrl-C: to the launch's whole process group
-    assert launch.wait(60) == INTERRUPTED, log.read_text()[-3000:]
+    config = cube_config(tmp_path / "config.yaml", nepisodes=400, nsteps=50)
+    folders_before = set(Path(tempfile.gettempdir()).glob("robot_rl-workers-*"))
+    try:
+        with open(log, "w") as out:
+            launch = runner.start([*CUBE_TRAINING, f"config:={config}", f"results_dir:={tmp_path / 'results'}",
+                                   "envs:=2"], stdout=out, stderr=subprocess.STDOUT)
+        wait_for(lambda: "Starting 2 envs" in log.read_text(), 120, "the training node starting its workers")
+        os.killpg(launch.pid, signal.SIGINT)
+        assert launch.wait(60) == INTERRUPTED, log.read_text()[-3000:]
+        wait_for(lambda: processes_using(uri) == [], 30, "the end of every process of the launch")
+    finally:
+        runner.close()
+        for pid in processes_using(uri):  # what the launch left running, had the test failed
+            os.kill(pid, signal.SIGKILL)
     output = log.read_text()
     assert "Traceback" not in output and "ConnectionRefusedError" not in output, output[-3000:]
+    assert set(Path(tempfile.gettempdir()).glob("robot_rl-workers-*")) <= folders_before, "a workers' folder is left"
 
 
 def test_results_dir_that_is_a_file_gives_one_line(master, tmp_path):

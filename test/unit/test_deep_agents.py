@@ -180,7 +180,7 @@ def _append_an_episode_after_the_checkpoint(run):
 
 @pytest.mark.parametrize("damage, expected", [
     ("truncated", "not the model.zip this run's checkpoint recorded (its sha256 differs"),
-    ("truncated_with_its_digest", "not weights of this run's dqn model: BadZipFile"),
+    ("truncated_with_its_digest", "not weights of this run's dqn model: ValueError: Error: the file"),
     ("another_agents", "not weights of this run's dqn model: "),
     ("another_runs", "not the model.zip this run's checkpoint recorded"),
 ])
@@ -228,7 +228,7 @@ def test_a_full_disk_during_a_deep_run_leaves_no_partial_model_and_a_summary(tmp
 
     def save(self, path, *args, **kwargs):
         saves.append(path)
-        if len(saves) == 2:
+        if len(saves) >= 2:
             with open(path, "wb") as f:
                 f.write(b"half a model")
             raise OSError(errno.ENOSPC, "No space left on device", str(path))

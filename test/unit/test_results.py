@@ -159,11 +159,11 @@ def test_a_run_another_process_trains_is_refused_and_the_lock_dies_with_it(tmp_p
     import sys
 
     from robot_rl.results import RunLockedError
-    run = RunDirectory.create(tmp_path, "hopper", PARAMS, run_name="r1")
-    run.checkpoint({"episode": 0})
     holder = subprocess.Popen([sys.executable, "-c", "import sys; from robot_rl.results import RunDirectory; "
-                               f"RunDirectory({str(run.path)!r}).lock(); print('locked', flush=True); "
-                               "sys.stdin.read()"], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+                               f"RunDirectory.create({str(tmp_path)!r}, 'hopper', {{}}, run_name='r1')"
+                               ".checkpoint({'episode': 0}); print('locked', flush=True); sys.stdin.read()"],
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    run = RunDirectory(tmp_path / "hopper" / "r1")
     try:
         assert holder.stdout.readline() == "locked\n"
         episodes_before = run.episodes_csv.read_bytes()
@@ -175,3 +175,13 @@ def test_a_run_another_process_trains_is_refused_and_the_lock_dies_with_it(tmp_p
         holder.kill()
         holder.wait()
     assert RunDirectory(run.path).prepare_resume(keep)["episode"] == 0  # the dead holder's lock is gone
+
+
+def test_a_run_by_name(tmp_path):
+    run = RunDirectory.create(tmp_path, "hopper", PARAMS, run_name="first")
+    RunDirectory.create(tmp_path, "hopper", PARAMS)  # latest moves on
+    assert RunDirectory.named(tmp_path, "hopper", "first").path == run.path
+    with pytest.raises(FileNotFoundError, match=r"no run 'second' under .*hopper \(runs: 2\d+-\d+, first\)"):
+        RunDirectory.named(tmp_path, "hopper", "second")
+    with pytest.raises(ValueError, match="invalid run name"):
+        RunDirectory.named(tmp_path, "hopper", "../first")

@@ -190,7 +190,8 @@ class RunLedger:
         name, value = next(iter(aggregate({self.task.headline_metric: self.headline}).items()))
         self.log(f"progress: {unit} {count}/{total} ({100.0 * count / total:.0f} %), "
                  f"{state.env_steps / max(now - self._wall_start, 1e-9):.0f} env steps/s, ETA {format_duration(eta)}, "
-                 f"{name} over the last {len(self.headline)} episodes: {value:.3g}{self.learner.exploration_label()}")
+                 f"{name} over the last {len(self.headline)} episodes: {'n/a' if value is None else f'{value:.3g}'}"
+                 f"{self.learner.exploration_label()}")
 
     @contextmanager
     def saved_on_stop(self, rollback: Callable[[], None] = _no_op) -> Iterator[None]:

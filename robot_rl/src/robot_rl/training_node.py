@@ -34,7 +34,7 @@ from std_msgs.msg import Float64
 from pybullet_sim.client import SimConnectionError
 from pybullet_sim.shutdown import shutdown_on_signals, shutting_down
 
-from .agents import DEFAULT_AGENT, AgentSpec, find_agent
+from .agents import DEFAULT_AGENT, AgentSpec, Trainer, find_agent
 from .evaluation import TrainedRun, VideoRequest, evaluate
 from .ledger import TrainingHooks
 from .params import ParamError, Params, TaskParams, load_yaml_file, param, parse_scalar
@@ -203,6 +203,11 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     except ValueError as error:  # params the env refuses (e.g. a running_step of more physics steps than a step takes)
         return _fail(f"{node.config_file}: {error}")
     results_name, checkpoint_name = agent.results_name(task), agent.checkpoint_name
+    run: RunDirectory | None = None
+    trainer: Trainer | None = None
+
+    def episodes_saved() -> int:
+        return trainer.state.episode if trainer is not None else 0
     try:
         run = _open_run(node, results_name, checkpoint_name, params, task)
         rospy.loginfo("Results go to %s", run.path)
@@ -228,13 +233,17 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
         summary = trainer.train()
     except (FileNotFoundError, FileExistsError, ValueError) as error:
         return _fail(str(error))
-    except (WorkerError, SimConnectionError) as error:
-        if should_stop():
-            return _interrupted(trainer.state.episode, run)
-        return _fail(f"training stopped: {error}. Episodes up to episode {trainer.state.episode} are saved in "
-                     f"{run.path}; continue with resume:=true")
-    except OSError as error:  # the results folder: read-only, disk full...
-        return _fail(f"cannot write the results: {error.filename or results_root}: {error.strerror or error}")
+    except (WorkerError, SimConnectionError, OSError) as error:
+        if should_stop():  # the error is the stop's (e.g. the launch's master gone: connection refused)
+            if run is None:
+                rospy.logwarn("stopped before training started: %s", error)
+                return INTERRUPTED
+            return _interrupted(episodes_saved(), run)
+        if isinstance(error, OSError) and not isinstance(error, ConnectionError):  # the results: read-only, full...
+            return _fail(f"cannot write the results: {error.filename or results_root}: {error.strerror or error}")
+        saved = f" Episodes up to episode {episodes_saved()} are saved in {run.path}; continue with resume:=true" \
+            if run is not None else ""
+        return _fail(f"training stopped: {error}.{saved}")
     finally:
         _close_quietly(env)
     if not summary["completed"]:
