@@ -94,7 +94,7 @@ def episodes(results: Path, task: str = "moving_cube") -> list[int]:
     ({"alpha": None}, "missing parameter 'alpha'"),
     ({"alpha": "high"}, "parameter 'alpha' expected float, got 'high' (str)"),
     ({"alpha": 1.5}, "parameter 'alpha' = 1.5 out of range [0.0, 1.0]"),
-    ({"running_step": -0.06}, "parameter 'running_step' = -0.06 out of range (0.0, inf]"),
+    ({"running_step": -0.06}, "parameter 'running_step' = -0.06 out of range (0.0, 100.0]"),
     ({"init_cube_pose": {"x": 0.0, "y": 0.0}}, "missing parameter 'init_cube_pose/z'"),
     ({"running_step": 1e308}, "parameter 'running_step' = 1e+308 out of range (0.0, 100.0]"),
     ({"nsteps": 2 * 10**9}, "parameter 'nsteps' = 2000000000 out of range [1, 1000000000]"),
