@@ -197,7 +197,9 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
         env = _make_env(task, params, agent, node.envs, node.timeout)
     except (SimConnectionError, WorkerError, OSError) as error:  # OSError: e.g. a master refusing, on Ctrl-C
         if should_stop():  # e.g. the sim failed to start and roslaunch is ending the launch
-            rospy.logwarn("stopped before training started: %s", error)
+            if isinstance(error, WorkerError):
+                error.discard_logs()  # the stop's doing, not a fault to look into
+            rospy.logwarn("stopped before training started")
             return INTERRUPTED
         return _fail(str(error))
     except ValueError as error:  # params the env refuses (e.g. a running_step of more physics steps than a step takes)
