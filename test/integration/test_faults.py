@@ -358,10 +358,11 @@ def test_a_bad_checkpoint_is_refused_and_nothing_is_lost(master, trained_run, tm
 def test_resume_with_nothing_to_resume_gives_one_line(master, tmp_path, previous):
     results = tmp_path / "results"
     expected = "no previous run under"
-    if previous == "without_checkpoint":
-        from robot_rl.results import RunDirectory
-        run = RunDirectory.create(results, "moving_cube", {"nepisodes": 3})
-        expected = f"no checkpoint {run.path / 'qtable.json'}"
+    if previous == "without_checkpoint":  # made by another process: the one that creates a run holds its lock
+        subprocess.run([sys.executable, "-c", "from robot_rl.results import RunDirectory; "
+                        f"RunDirectory.create({str(results)!r}, 'moving_cube', {{'nepisodes': 3}}, run_name='r')"],
+                       check=True, timeout=60)
+        expected = f"no checkpoint {results / 'moving_cube' / 'r' / 'qtable.json'}"
     result = master.run([*CUBE_TRAINING, f"results_dir:={results}", "resume:=true"], timeout=120)
     assert result.returncode == 1
     one_line(result.stdout + result.stderr, expected)
