@@ -7,9 +7,11 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -92,9 +94,12 @@ def episodes(results: Path, task: str = "moving_cube") -> list[int]:
     ({"alpha": None}, "missing parameter 'alpha'"),
     ({"alpha": "high"}, "parameter 'alpha' expected float, got 'high' (str)"),
     ({"alpha": 1.5}, "parameter 'alpha' = 1.5 out of range [0.0, 1.0]"),
-    ({"running_step": -0.06}, "parameter 'running_step' = -0.06 out of range (0.0, inf]"),
+    ({"running_step": -0.06}, "parameter 'running_step' = -0.06 out of range (0.0, 100.0]"),
     ({"init_cube_pose": {"x": 0.0, "y": 0.0}}, "missing parameter 'init_cube_pose/z'"),
-], ids=["missing_key", "wrong_type", "out_of_range", "negative_step", "missing_nested_key"])
+    ({"running_step": 1e308}, "parameter 'running_step' = 1e+308 out of range (0.0, 100.0]"),
+    ({"nsteps": 2 * 10**9}, "parameter 'nsteps' = 2000000000 out of range [1, 1000000000]"),
+], ids=["missing_key", "wrong_type", "out_of_range", "negative_step", "missing_nested_key", "absurd_running_step",
+        "absurd_nsteps"])
 def test_bad_param_stops_training_before_anything_is_written(master, tmp_path, changes, expected):
     document = yaml.safe_load(ONE_DISK_WALK.config_path.read_text())
     for key, value in changes.items():
@@ -150,13 +155,47 @@ def test_a_config_with_rosparams_evaluated_tag_is_refused_before_it_runs(master,
 
 
 @pytest.mark.parametrize("args, expected", [
-    (["nepisodes:=0"], "parameter 'nepisodes' = 0 out of range [1, inf]"),
+    (["nepisodes:=0"], "parameter 'nepisodes' = 0 out of range [1, 1000000000]"),
     (["nepisodes:=many"], "parameter 'nepisodes' expected int, got 'many' (str)"),
-], ids=["nepisodes_zero", "nepisodes_text"])
+    (["nepisodes:=100000000000000000000"], "parameter 'nepisodes' = 100000000000000000000 out of range"),
+    (["seed:=2147483648"], "parameter 'seed' = 2147483648 out of range [0, 2147483647]"),
+    (["seed:=-1"], "parameter 'seed' = -1 out of range [0, 2147483647]"),
+    (["envs:=abc"], "parameter 'envs' expected int, got 'abc' (str)"),
+    (["envs:=0"], "parameter 'envs' = 0 out of range [1, inf]"),
+    ([f"envs:={2 * (os.cpu_count() or 1) + 1}"], "per core"),
+    (["max_steps:=1e21"], "parameter 'max_steps' expected int, got '1e21' (str)"),
+], ids=["nepisodes_zero", "nepisodes_text", "nepisodes_beyond_32_bits", "seed_beyond_32_bits", "seed_negative",
+        "envs_text", "envs_zero", "envs_beyond_the_cores", "max_steps_text"])
 def test_bad_launch_argument_gives_one_line(master, tmp_path, args, expected):
     result = master.run([*CUBE_TRAINING, *args, f"results_dir:={tmp_path / 'results'}"], timeout=120)
-    assert result.returncode == 1
-    assert "/movingcube_gym" in one_line(result.stdout + result.stderr, expected)
+    output = result.stdout + result.stderr
+    assert result.returncode == 1, output[-3000:]
+    assert "/movingcube_gym" in one_line(output, expected)
+    assert not (tmp_path / "results").exists()
+
+
+def test_a_config_number_beyond_ros_ints_gives_one_line(master, tmp_path):
+    """nsteps: 10**21 in the YAML: roslaunch cannot send it to the master (XML-RPC carries 32-bit ints)."""
+    config = cube_config(tmp_path / "config.yaml", nsteps=10**21)
+    result = master.run([*CUBE_TRAINING, f"config:={config}", f"results_dir:={tmp_path / 'results'}"], timeout=120)
+    output = result.stdout + result.stderr
+    assert result.returncode == 1, output[-3000:]
+    line = one_line(output, "roslaunch_checked.py: cannot launch")
+    assert "a ROS param is a 32-bit int at most: /moving_cube/nsteps" in line, line
+    assert not (tmp_path / "results").exists()
+
+
+def test_a_deep_agents_buffer_beyond_reason_gives_one_line(master, tmp_path):
+    agent_config = tmp_path / "dqn.yaml"
+    document = yaml.safe_load((REPO / "robot_rl" / "config" / "dqn.yaml").read_text())
+    document["buffer_size"] = 10**12
+    agent_config.write_text(yaml.safe_dump(document))
+    result = master.run([*CUBE_TRAINING, "agent:=dqn", f"agent_config:={agent_config}",
+                         f"results_dir:={tmp_path / 'results'}"], timeout=180)
+    output = result.stdout + result.stderr
+    assert result.returncode == 1, output[-3000:]
+    assert str(agent_config) in one_line(output, "parameter 'buffer_size' = 1000000000000 out of range")
+    assert not (tmp_path / "results").exists()
 
 
 def test_unknown_task_names_the_known_ones(master, tmp_path):
@@ -204,7 +243,9 @@ def with_controller_joint(joint: str) -> dict:
     (CUBE_URDF, with_controller_joint("no_such_joint"), "names joint 'no_such_joint'"),
     (CUBE_URDF, {**CUBE_SIM, "time_step": "fast"}, "parameter ~time_step must be float"),
     (CUBE_URDF, {**CUBE_SIM, "sensors": {"odom": {"type": "sonar"}}}, "unsupported sensor type"),
-], ids=["missing_description", "broken_xml", "not_urdf", "unknown_joint", "mistyped_param", "unknown_sensor"])
+    (CUBE_URDF, {**CUBE_SIM, "seed": -1}, "parameter ~seed must be >= 0, got -1"),
+], ids=["missing_description", "broken_xml", "not_urdf", "unknown_joint", "mistyped_param", "unknown_sensor",
+        "negative_seed"])
 def test_bad_sim_input_stops_the_sim_node_with_one_line(master, description, params, expected):
     result = start_sim(master, params, description)
     assert result.returncode == 1
@@ -317,10 +358,11 @@ def test_a_bad_checkpoint_is_refused_and_nothing_is_lost(master, trained_run, tm
 def test_resume_with_nothing_to_resume_gives_one_line(master, tmp_path, previous):
     results = tmp_path / "results"
     expected = "no previous run under"
-    if previous == "without_checkpoint":
-        from robot_rl.results import RunDirectory
-        run = RunDirectory.create(results, "moving_cube", {"nepisodes": 3})
-        expected = f"no checkpoint {run.path / 'qtable.json'}"
+    if previous == "without_checkpoint":  # made by another process: the one that creates a run holds its lock
+        subprocess.run([sys.executable, "-c", "from robot_rl.results import RunDirectory; "
+                        f"RunDirectory.create({str(results)!r}, 'moving_cube', {{'nepisodes': 3}}, run_name='r')"],
+                       check=True, timeout=60)
+        expected = f"no checkpoint {results / 'moving_cube' / 'r' / 'qtable.json'}"
     result = master.run([*CUBE_TRAINING, f"results_dir:={results}", "resume:=true"], timeout=120)
     assert result.returncode == 1
     one_line(result.stdout + result.stderr, expected)
@@ -336,6 +378,60 @@ def test_resume_of_another_task_is_refused(master, trained_run, tmp_path):
     assert result.returncode == 1
     one_line(result.stdout + result.stderr, "it is of task 'MovingCubeOneDiskWalk-v0', this run trains 'Monoped-v0'")
     assert run_files(results) == before
+
+
+def test_two_resumes_of_one_run_at_once_one_is_refused_and_the_run_stays_whole(tmp_path, trained_run):
+    """Two `resume:=true` of one run folder, each on its own master: the one that comes second is refused
+    with one line (the run's lock), the other finishes; every episode is in episodes.csv once."""
+    results, config = copy_run(trained_run, tmp_path)
+    masters = [RosMaster(tmp_path / f"ros{i}", cwd=REPO) for i in range(2)]
+    logs = [tmp_path / f"run{i}.log" for i in range(2)]
+    try:
+        launches = []
+        for m, log in zip(masters, logs):
+            with open(log, "w") as out:
+                launches.append(m.start([*CUBE_TRAINING, f"config:={config}", f"results_dir:={results}",
+                                         "resume:=true", "nepisodes:=80"], stdout=out, stderr=subprocess.STDOUT))
+        codes = [launch.wait(300) for launch in launches]
+        assert all(m.leftovers() == [] for m in masters)
+    finally:
+        for m in masters:
+            m.close()
+    outputs = [log.read_text() for log in logs]
+    assert sorted(codes) == [0, 1], (codes, [o[-2000:] for o in outputs])
+    refused = outputs[codes.index(1)]
+    line = one_line(refused, "another process is training this run")
+    assert "[FATAL]" in line and str((results / "moving_cube" / "latest").resolve()) in line
+    one_line(outputs[codes.index(0)], "Training complete: 80 episodes")
+    assert episodes(results) == list(range(1, 81)), "every episode once"
+
+
+def test_named_runs_are_kept_apart_and_resumed_by_name(master, tmp_path):
+    """run:=first, then another run (latest moves on): run:=first again is refused, resume:=true run:=first
+    continues first, not latest."""
+    config = cube_config(tmp_path / "config.yaml", nepisodes=3, nsteps=10)
+    results = tmp_path / "results"
+    train = [*CUBE_TRAINING, f"config:={config}", f"results_dir:={results}"]
+    for args in (["run:=first"], []):
+        result = master.run([*train, *args], timeout=120)
+        assert result.returncode == 0, (result.stdout + result.stderr)[-3000:]
+    first = results / "moving_cube" / "first"
+    before = {p.name: p.read_bytes() for p in first.iterdir()}
+    again = master.run([*train, "run:=first"], timeout=120)
+    assert again.returncode == 1
+    line = one_line(again.stdout + again.stderr, f"a run {first} exists already")
+    assert "resume:=true run:=first continues it" in line
+    assert {p.name: p.read_bytes() for p in first.iterdir()} == before
+    latest = (results / "moving_cube" / "latest").resolve()
+    resumed = master.run([*train, "resume:=true", "run:=first", "nepisodes:=5"], timeout=120)
+    assert resumed.returncode == 0, (resumed.stdout + resumed.stderr)[-3000:]
+    one_line(resumed.stdout + resumed.stderr, f"Resuming {first} after episode 3")
+    assert [line.split(",")[0] for line in (first / "episodes.csv").read_text().splitlines()[1:]] == \
+        ["1", "2", "3", "4", "5"]
+    assert len((latest / "episodes.csv").read_text().splitlines()) == 4, "latest is left alone"
+    missing = master.run([*train, "resume:=true", "run:=second"], timeout=120)
+    assert missing.returncode == 1
+    one_line(missing.stdout + missing.stderr, "no run 'second' under")
 
 
 @pytest.mark.parametrize("damage, expected", [
@@ -548,6 +644,49 @@ def test_a_frozen_sim_stops_training_within_the_timeout(master, tmp_path):
     assert summary["episodes"] == episodes(tmp_path / "results")[-1]
 
 
+CHANGE_THE_SIM = {
+    "time_step": """import rospy
+from gazebo_msgs.srv import GetPhysicsProperties, SetPhysicsProperties
+current = rospy.ServiceProxy("/gazebo/get_physics_properties", GetPhysicsProperties)()
+answer = rospy.ServiceProxy("/gazebo/set_physics_properties", SetPhysicsProperties)(
+    0.01, current.max_update_rate, current.gravity, current.ode_config)
+assert answer.success, answer.status_message
+""",
+    "reset_simulation": """import rospy
+from std_srvs.srv import Empty
+for _ in range(3):
+    rospy.ServiceProxy("/gazebo/reset_simulation", Empty)()
+"""}
+
+
+@pytest.mark.parametrize("change, expected", [
+    ("time_step", "its time step is now 0.01 s, this env started with 0.001 s"),
+    ("reset_simulation", "its time went back from"),
+])
+def test_a_sim_changed_from_outside_stops_training_with_one_line_then_resumes(master, tmp_path, change, expected):
+    """Another node sets the sim's time step, or resets it, mid-run: each step would cover another span
+    of sim time (or time goes back) and the run would go on regardless. The next step says so."""
+    log = tmp_path / "run.log"
+    launch = start_cube_training(master, tmp_path, log, nepisodes=400)
+    wait_for(logged_episode(log, 12), 120, "episode 12")
+    script = tmp_path / "change.py"
+    script.write_text(CHANGE_THE_SIM[change])
+    changed = master.run([sys.executable, str(script)], timeout=60)
+    assert changed.returncode == 0, changed.stderr[-3000:]
+    assert launch.wait(60) == 1, log.read_text()[-3000:]
+    line = one_line(log.read_text(), "the sim was changed from outside")
+    assert "[FATAL]" in line and expected in line and "continue with resume:=true" in line, line
+    results = tmp_path / "results"
+    summary = json.loads((results / "moving_cube" / "latest" / "summary.json").read_text())
+    assert summary["completed"] is False and "changed from outside" in summary["stopped"]
+    saved = json.loads((results / "moving_cube" / "latest" / "qtable.json").read_text())["episode"]
+    assert saved == summary["episodes"] >= 12 and episodes(results) == list(range(1, saved + 1))
+    resumed = master.run([*CUBE_TRAINING, f"config:={tmp_path / 'config.yaml'}", f"results_dir:={results}",
+                          "resume:=true", f"nepisodes:={saved + 3}"], timeout=180)
+    assert resumed.returncode == 0, (resumed.stdout + resumed.stderr)[-3000:]
+    assert episodes(results) == list(range(1, saved + 4))
+
+
 def test_sigkill_of_the_trainer_between_checkpoints_then_resume(master, tmp_path):
     log = tmp_path / "run.log"
     launch = start_cube_training(master, tmp_path, log, nepisodes=40)
@@ -598,6 +737,91 @@ def test_sigkill_of_the_launcher_leaves_no_process_of_the_run(tmp_path):
             os.kill(pid, signal.SIGKILL)
 
 
+def descendants(pid: int) -> list[int]:
+    """Every process under `pid` (from /proc's parent pids)."""
+    children: dict[int, list[int]] = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                parent = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            except (OSError, IndexError, ValueError):
+                continue
+            children.setdefault(parent, []).append(int(entry.name))
+    found, todo = [], [pid]
+    while todo:
+        below = children.get(todo.pop(), [])
+        found.extend(below)
+        todo.extend(below)
+    return found
+
+
+def worker_sims(trainer: int) -> list[int]:
+    """The sim nodes of a vector trainer's workers."""
+    sims = []
+    for pid in descendants(trainer):
+        try:
+            if b"sim_node.py" in Path(f"/proc/{pid}/cmdline").read_bytes():
+                sims.append(pid)
+        except OSError:
+            continue
+    return sims
+
+
+def start_vector_training(master: RosMaster, tmp_path: Path, log: Path) -> subprocess.Popen:
+    config = cube_config(tmp_path / "config.yaml", nepisodes=400, nsteps=50, max_pitch_angle=10.0, max_yaw_angle=10.0)
+    with open(log, "w") as out:
+        return master.start([*CUBE_TRAINING, f"config:={config}", f"results_dir:={tmp_path / 'results'}", "envs:=2"],
+                            stdout=out, stderr=subprocess.STDOUT)
+
+
+def test_a_killed_worker_sim_stops_training_with_one_line_naming_its_log(master, tmp_path):
+    """envs:=2 and a worker's sim node killed: one FATAL line naming the worker and the sim's log, with no
+    traceback and no hint to start a launch file (a worker starts its own sim); the run is saved."""
+    log = tmp_path / "run.log"
+    launch = start_vector_training(master, tmp_path, log)
+    wait_for(logged_episode(log, 12), 180, "episode 12")
+    trainer = node_pid(master, "/movingcube_gym")
+    sims = wait_for(lambda: worker_sims(trainer), 10, "the workers' sim nodes")
+    os.kill(sims[0], signal.SIGKILL)
+    assert launch.wait(120) == 1, log.read_text()[-3000:]
+    line = one_line(log.read_text(), "training stopped: worker")
+    assert "[FATAL]" in line and "is gone or frozen: its log is" in line and "sim_node.log" in line, line
+    assert "roslaunch pybullet_sim" not in line and "continue with resume:=true" in line, line
+    sim_log = Path(re.search(r"its log is (\S+sim_node\.log)", line).group(1))
+    assert sim_log.is_file(), "the log the line names is kept"
+    shutil.rmtree(sim_log.parent.parent)  # the failed workers' folder, kept for the user
+    wait_for(lambda: not any(Path(f"/proc/{pid}").exists() for pid in [trainer, *sims]), 30,
+             "the end of the trainer and its workers' sim nodes")
+    summary = json.loads((tmp_path / "results" / "moving_cube" / "latest" / "summary.json").read_text())
+    assert summary["completed"] is False and summary["episodes"] == episodes(tmp_path / "results")[-1] >= 12
+
+
+def test_ctrl_c_while_the_workers_start_ends_the_run_with_no_traceback(tmp_path):
+    """Ctrl-C (SIGINT to the launch's process group, as a terminal sends it) while the envs:=2 workers start
+    their masters and sims, the launch having started its own master as ./ws run's does: the master goes
+    first and refuses the node's calls. Exit 130, no traceback, no process left."""
+    uri = f"http://127.0.0.1:{free_port()}"
+    runner = Processes(tmp_path, cwd=REPO, ROS_MASTER_URI=uri, ROS_HOSTNAME="127.0.0.1", ROS_IP="127.0.0.1")
+    log = tmp_path / "run.log"
+    config = cube_config(tmp_path / "config.yaml", nepisodes=400, nsteps=50)
+    folders_before = set(Path(tempfile.gettempdir()).glob("robot_rl-workers-*"))
+    try:
+        with open(log, "w") as out:
+            launch = runner.start([*CUBE_TRAINING, f"config:={config}", f"results_dir:={tmp_path / 'results'}",
+                                   "envs:=2"], stdout=out, stderr=subprocess.STDOUT)
+        wait_for(lambda: "Starting 2 envs" in log.read_text(), 120, "the training node starting its workers")
+        os.killpg(launch.pid, signal.SIGINT)
+        assert launch.wait(60) == INTERRUPTED, log.read_text()[-3000:]
+        wait_for(lambda: processes_using(uri) == [], 30, "the end of every process of the launch")
+    finally:
+        runner.close()
+        for pid in processes_using(uri):  # what the launch left running, had the test failed
+            os.kill(pid, signal.SIGKILL)
+    output = log.read_text()
+    assert "Traceback" not in output and "ConnectionRefusedError" not in output, output[-3000:]
+    assert set(Path(tempfile.gettempdir()).glob("robot_rl-workers-*")) <= folders_before, "a workers' folder is left"
+
+
 def test_results_dir_that_is_a_file_gives_one_line(master, tmp_path):
     not_a_dir = tmp_path / "results"
     not_a_dir.write_text("a file")
@@ -606,6 +830,28 @@ def test_results_dir_that_is_a_file_gives_one_line(master, tmp_path):
     assert result.returncode == 1
     assert str(not_a_dir) in one_line(result.stdout + result.stderr, "cannot write the results")
     assert not_a_dir.read_text() == "a file"
+
+
+@pytest.mark.parametrize("results_dir", ["runs", "~/runs"])
+def test_a_relative_or_home_results_dir_is_where_the_command_ran(master, tmp_path, results_dir):
+    """roslaunch runs nodes in ROS_HOME: `results_dir:=runs` used to land in ~/.ros/runs, and `~` to be a
+    folder named "~" there."""
+    here, home = tmp_path / "here", tmp_path / "home"
+    here.mkdir()
+    home.mkdir()
+    runner = Processes(tmp_path / "ros_here", cwd=here, ROS_MASTER_URI=master.uri, ROS_HOSTNAME="127.0.0.1",
+                       ROS_IP="127.0.0.1", HOME=str(home), PWD=str(here))
+    config = cube_config(tmp_path / "config.yaml", nepisodes=2, nsteps=10)
+    try:
+        result = runner.run([*CUBE_TRAINING, f"config:={config}", f"results_dir:={results_dir}"], timeout=120)
+    finally:
+        runner.close()
+    output = result.stdout + result.stderr
+    assert result.returncode == 0, output[-3000:]
+    expected = (here if results_dir == "runs" else home) / "runs" / "moving_cube"
+    assert str(expected) in one_line(output, "Results go to ")
+    assert episodes(expected.parent) == [1, 2]
+    assert not (tmp_path / "ros_here" / "runs").exists() and not list(tmp_path.rglob("~"))
 
 
 def test_disk_full_gives_one_line_and_keeps_the_last_checkpoint(master, tmp_path):

@@ -170,3 +170,91 @@ def test_evaluate_runs_the_deep_policy_greedily(tmp_path):
     reports = [evaluate(trained, episodes=2, horizon_s=0.6, backend="direct", seed=3) for _ in range(2)]
     assert reports[0] == reports[1], "a deterministic policy on the direct backend repeats"
     assert set(reports[0]["greedy"]) == {"mean_return", "mean_y_distance", "success_rate"}
+
+
+def _append_an_episode_after_the_checkpoint(run):
+    """As a trainer killed after its last checkpoint leaves it: a row a resume would drop."""
+    with open(run.episodes_csv, "a") as f:
+        f.write(run.episodes_csv.read_text().splitlines()[-1].replace("4,", "5,", 1) + "\n")
+
+
+@pytest.mark.parametrize("damage, expected", [
+    ("truncated", "not the model.zip this run's checkpoint recorded (its sha256 differs"),
+    ("truncated_with_its_digest", "not weights of this run's dqn model: ValueError: Error: the file"),
+    ("another_agents", "not weights of this run's dqn model: "),
+    ("another_runs", "not the model.zip this run's checkpoint recorded"),
+])
+def test_a_deep_resume_checks_model_zip_before_any_file_changes(tmp_path, damage, expected):
+    import hashlib
+    run, _ = train(tmp_path / "run", "dqn", 1, nepisodes=4)
+    _append_an_episode_after_the_checkpoint(run)
+    model_zip, agent_json = run.path / "model.zip", run.path / "agent.json"
+    if damage.startswith("truncated"):
+        model_zip.write_bytes(model_zip.read_bytes()[:2000])
+    else:
+        other, _ = train(tmp_path / "other", "ppo" if damage == "another_agents" else "dqn", 1, nepisodes=2)
+        model_zip.write_bytes((other.path / "model.zip").read_bytes())
+    if damage in ("truncated_with_its_digest", "another_agents"):  # as a checkpoint written before digests
+        checkpoint = json.loads(agent_json.read_text())
+        checkpoint["model_sha256"] = hashlib.sha256(model_zip.read_bytes()).hexdigest()
+        agent_json.write_text(json.dumps(checkpoint))
+    before = {p.name: p.read_bytes() for p in run.path.iterdir()}
+    with pytest.raises(ValueError) as refused:
+        train(tmp_path / "run", "dqn", 1, resume=True, nepisodes=8)
+    message = str(refused.value)
+    assert message.startswith(f"{model_zip.resolve()}: ") or message.startswith(f"{model_zip}: "), message
+    assert expected in message and "\n" not in message and "weights_only" not in message, message
+    assert {p.name: p.read_bytes() for p in run.path.iterdir()} == before, "no file of the run may change"
+    assert [r.episode for r in run.read_episodes()] == [1, 2, 3, 4, 5]
+
+
+def test_a_checkpoint_cut_short_before_its_model_zip_was_renamed_resumes(tmp_path):
+    """agent.json written, model.partial.zip not yet model.zip (a kill in between): resume completes it."""
+    run, _ = train(tmp_path, "dqn", 1, nepisodes=4)
+    model_zip, partial = run.path / "model.zip", run.path / "model.partial.zip"
+    model_zip.rename(partial)
+    model_zip.write_bytes(b"the previous checkpoint's model")
+    _, summary = train(tmp_path, "dqn", 1, resume=True, nepisodes=6)
+    assert summary["completed"] and not partial.exists()
+    assert [r.episode for r in run.read_episodes()] == list(range(1, 7))
+
+
+def test_a_full_disk_during_a_deep_run_leaves_no_partial_model_and_a_summary(tmp_path, monkeypatch):
+    """The second checkpoint's model.save fails half written (ENOSPC): no model.partial.zip is left, the
+    small summary.json says how the run ended, and the first checkpoint still resumes."""
+    import errno
+    saves = []
+    real_save = DQN.save
+
+    def save(self, path, *args, **kwargs):
+        saves.append(path)
+        if len(saves) >= 2:
+            with open(path, "wb") as f:
+                f.write(b"half a model")
+            raise OSError(errno.ENOSPC, "No space left on device", str(path))
+        return real_save(self, path, *args, **kwargs)
+    monkeypatch.setattr(DQN, "save", save)
+    with pytest.raises(OSError, match="No space left on device"):
+        train(tmp_path, "dqn", 1, nepisodes=6)
+    run = RunDirectory.latest(tmp_path, "moving_cube-dqn", DEEP_CHECKPOINT)
+    assert not (run.path / "model.partial.zip").exists()
+    summary = json.loads(run.summary_json.read_text())
+    assert summary["completed"] is False and "No space left on device" in summary["stopped"]
+    assert json.loads((run.path / "agent.json").read_text())["episode"] == 2
+    monkeypatch.setattr(DQN, "save", real_save)
+    _, resumed = train(tmp_path, "dqn", 1, resume=True, nepisodes=6)
+    assert resumed["completed"] and [r.episode for r in run.read_episodes()] == list(range(1, 7))
+
+
+def test_a_buffer_larger_than_the_memory_is_refused_in_one_line(tmp_path):
+    params = cube_params()
+    run = RunDirectory.create(tmp_path, "moving_cube-dqn", params.to_mapping(), ONE_DISK_WALK.metric_names,
+                              checkpoint_name=DEEP_CHECKPOINT)
+    agent_params = find_agent("dqn").load_params().with_changes("test", buffer_size=10**9)
+    env = make_env(ONE_DISK_WALK, params=params, backend="direct")
+    try:
+        with pytest.raises(ValueError, match=r"the agent's buffer needs [\d.]+ GiB, more than the .* GiB of memory "
+                                             r"available: lower buffer_size"):
+            DeepTrainer(env, ONE_DISK_WALK, params, find_agent("dqn"), agent_params, run)
+    finally:
+        env.close()

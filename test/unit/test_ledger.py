@@ -34,12 +34,12 @@ class Learner:
         return [f"closing after {summary['episodes']} episodes, {len(last)} averaged"]
 
 
-def make_ledger(tmp_path, n_envs=1, nepisodes=4, **hooks):
+def make_ledger(tmp_path, n_envs=1, nepisodes=4, max_steps=None, **hooks):
     run = RunDirectory.create(tmp_path, "moving_cube", {}, ONE_DISK_WALK.metric_names, "run")
     learner, log = Learner(run), []
     learner.state = TrainingState()
     ledger = RunLedger(run, ONE_DISK_WALK, nepisodes, learner.state, learner,
-                       TrainingHooks(log=log.append, checkpoint_every=2, **hooks), n_envs=n_envs)
+                       TrainingHooks(log=log.append, checkpoint_every=2, **hooks), n_envs=n_envs, max_steps=max_steps)
     ledger.start()
     return ledger, learner, log
 
@@ -107,6 +107,16 @@ def test_the_progress_line(tmp_path):
                             f"epsilon 0.500")
 
 
+def test_under_a_step_budget_the_progress_line_counts_steps(tmp_path):
+    """max_steps:=N: the episodes are not what ends the run, the steps are."""
+    ledger, _, log = make_ledger(tmp_path, nepisodes=500, max_steps=20, progress_every_s=0.0)
+    ledger.log_progress_if_due()
+    assert log[-1].startswith("progress: step 0/20 (0 %), ") and "ETA ?," in log[-1], log[-1]
+    ledger.episode_done(episode(steps=5), highest=1.0, epsilon=0.5)
+    ledger.log_progress_if_due()
+    assert log[-1].startswith("progress: step 5/20 (25 %), "), log[-1]
+
+
 @pytest.mark.parametrize(("error", "reason"), [(KeyboardInterrupt(), "interrupted"),
                                                (RuntimeError("sim gone"), "error: sim gone")])
 def test_the_stop_path_rolls_back_saves_and_reraises(tmp_path, error, reason):
@@ -127,7 +137,8 @@ def test_a_stop_request_makes_any_error_an_interruption(tmp_path):
     assert json.loads(ledger.run.summary_json.read_text())["stopped"] == "interrupted"
 
 
-def test_the_stop_path_logs_a_failure_to_save_and_raises_the_original_error(tmp_path):
+def test_the_stop_path_logs_a_failure_to_save_writes_what_it_can_and_raises_the_original_error(tmp_path):
+    """A full disk: the checkpoint cannot be written, the small summary.json still says how the run ended."""
     ledger, learner, log = make_ledger(tmp_path)
 
     def cannot_write():
@@ -135,8 +146,9 @@ def test_the_stop_path_logs_a_failure_to_save_and_raises_the_original_error(tmp_
     learner.save_checkpoint = cannot_write
     with pytest.raises(RuntimeError, match="sim gone"), ledger.saved_on_stop():
         raise RuntimeError("sim gone")
-    assert log[-1] == "could not save the run after episode 0: disk full"
-    assert not ledger.run.summary_json.exists()
+    assert "could not save the run's checkpoint after episode 0: disk full" in log
+    summary = json.loads(ledger.run.summary_json.read_text())
+    assert (summary["completed"], summary["stopped"]) == (False, "error: sim gone")
 
 
 def test_a_restored_state_is_checked_against_the_format_and_the_task():

@@ -148,3 +148,18 @@ def test_rosparams_yaml_tags_are_refused_and_never_evaluated(tmp_path, value):
     else:
         assert load_yaml_file(path) == {"alpha": "rad(1)"}  # a plain string, as YAML reads it
     assert not marker.exists()
+
+
+@pytest.mark.parametrize("text, value", [("12", 12), ("0.5", 0.5), ("true", True), ("2147483648", 2147483648),
+                                         ("abc", "abc"), ("1e21", "1e21"), ("!radians 1", "!radians 1"), ("", "")])
+def test_launch_argument_text_is_typed_as_yaml_types_a_scalar_and_never_evaluated(text, value):
+    from robot_rl.params import parse_scalar
+    assert parse_scalar(text) == value and type(parse_scalar(text)) is type(value)
+
+
+@pytest.mark.parametrize("key, value", [("seed", 2**31), ("seed", -1), ("nepisodes", 10**10), ("nsteps", 10**10),
+                                        ("running_step", 1e308)])
+def test_absurd_but_finite_task_params_are_refused(key, value):
+    from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+    with pytest.raises(ParamError, match=f"parameter '{key}' = .* out of range"):
+        ONE_DISK_WALK.default_params().with_changes("test", **{key: value})

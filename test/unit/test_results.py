@@ -151,3 +151,37 @@ def test_prepare_resume_refuses_a_checkpoint_ahead_of_the_episodes(tmp_path):
 
 def test_moving_average_starts_with_the_mean_so_far():
     assert moving_average([1.0, 3.0, 5.0, 7.0], window=2).tolist() == [1.0, 2.0, 4.0, 6.0]
+
+
+def test_a_run_another_process_trains_is_refused_and_the_lock_dies_with_it(tmp_path):
+    """The lock is the other process's for as long as it lives; kill -9 leaves no stale lock."""
+    import subprocess
+    import sys
+
+    from robot_rl.results import RunLockedError
+    holder = subprocess.Popen([sys.executable, "-c", "import sys; from robot_rl.results import RunDirectory; "
+                               f"RunDirectory.create({str(tmp_path)!r}, 'hopper', {{}}, run_name='r1')"
+                               ".checkpoint({'episode': 0}); print('locked', flush=True); sys.stdin.read()"],
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    run = RunDirectory(tmp_path / "hopper" / "r1")
+    try:
+        assert holder.stdout.readline() == "locked\n"
+        episodes_before = run.episodes_csv.read_bytes()
+        with pytest.raises(RunLockedError, match="another process is training this run") as refused:
+            RunDirectory(run.path).prepare_resume(keep)
+        assert str(run.path) in str(refused.value) and "\n" not in str(refused.value)
+        assert run.episodes_csv.read_bytes() == episodes_before
+    finally:
+        holder.kill()
+        holder.wait()
+    assert RunDirectory(run.path).prepare_resume(keep)["episode"] == 0  # the dead holder's lock is gone
+
+
+def test_a_run_by_name(tmp_path):
+    run = RunDirectory.create(tmp_path, "hopper", PARAMS, run_name="first")
+    RunDirectory.create(tmp_path, "hopper", PARAMS)  # latest moves on
+    assert RunDirectory.named(tmp_path, "hopper", "first").path == run.path
+    with pytest.raises(FileNotFoundError, match=r"no run 'second' under .*hopper \(runs: 2\d+-\d+, first\)"):
+        RunDirectory.named(tmp_path, "hopper", "second")
+    with pytest.raises(ValueError, match="invalid run name"):
+        RunDirectory.named(tmp_path, "hopper", "../first")

@@ -79,3 +79,14 @@ def test_metrics_and_state_key(task):
     state_key = task.state_key(params)
     assert isinstance(state_key.key(observation), str)
     assert json.loads(json.dumps(state_key.to_dict())) == state_key.to_dict()
+
+
+@pytest.mark.parametrize("call", ["reset", "step", "render"])
+def test_an_env_used_after_close_says_so_in_one_line(call):
+    """Use after close: gymnasium's ClosedEnvironmentError, not whatever the closed backend raises."""
+    env = make_env(moving_cube_training.TASKS[0], backend="direct", render_mode="rgb_array")
+    env.reset(seed=0)
+    env.close()
+    env.close()  # a second close does nothing
+    with pytest.raises(gymnasium.error.ClosedEnvironmentError, match="MovingCubeOneDiskWalk-v0: the env is closed"):
+        {"reset": lambda: env.reset(), "step": lambda: env.step(0), "render": env.render}[call]()

@@ -8,8 +8,10 @@ fail (roslaunch exits 0 whatever its nodes did), a required node that finishes c
 launch without roslaunch's red "REQUIRED process has died" banner, and Ctrl-C exits 130. Starts a
 master if none is running, as roslaunch does. Nothing it started outlives it, however it ends (kill -9
 included: workspace_tools.launch_reaper). A YAML file with rosparam's !radians tag, which rosparam
-evaluates with eval(), is refused before anything in it runs.
+evaluates with eval(), is refused before anything in it runs. A relative or ~ results_dir:= is made
+absolute against the folder it runs in.
 """
+import os
 import sys
 from typing import Any
 
@@ -53,12 +55,38 @@ def refuse_evaluated_yaml_tags() -> None:
         loader.add_constructor("!radians", refuse)
 
 
+PATH_ARGS = ("results_dir",)  # launch arguments that name a folder: relative to where the command runs
+
+
+def absolute_paths(arg: str) -> str:
+    """results_dir:=runs or :=~/runs made absolute here: roslaunch runs its nodes in ROS_HOME (~/.ros), where
+    a relative path would land, and ~ is no folder to a node."""
+    name, _, value = arg.partition(":=")
+    return f"{name}:={os.path.abspath(os.path.expanduser(value))}" if name in PATH_ARGS and value else arg
+
+
+ROS_INT = (-2**31, 2**31 - 1)  # XML-RPC's int, which carries every integer param
+
+
+def too_big_for_ros(parent) -> str:
+    """", not ...: the params whose integers XML-RPC cannot carry" when the launch has any, else ""."""
+    def too_big(value) -> bool:
+        if isinstance(value, dict):
+            return any(too_big(v) for v in value.values())
+        if isinstance(value, list):
+            return any(too_big(v) for v in value)
+        return isinstance(value, int) and not isinstance(value, bool) and not ROS_INT[0] <= value <= ROS_INT[1]
+    params = getattr(getattr(parent, "config", None), "params", {}) or {}
+    names = sorted(name for name, p in params.items() if too_big(p.value))
+    return f" (a ROS param is a 32-bit int at most: {', '.join(names)})" if names else ""
+
+
 def main(argv) -> int:
     if not argv or argv[0] in ("-h", "--help"):
         print(__doc__, file=sys.stderr)
         return 2
     launch_file = roslaunch.rlutil.resolve_launch_arguments(argv)[0]
-    launch_args = [arg for arg in argv if ":=" in arg]
+    launch_args = [absolute_paths(arg) for arg in argv if ":=" in arg]
     uuid = roslaunch.rlutil.get_or_generate_uuid(None, False)
     roslaunch.configure_logging(uuid)
     refuse_evaluated_yaml_tags()
@@ -67,8 +95,12 @@ def main(argv) -> int:
     parent = roslaunch.parent.ROSLaunchParent(uuid, [(launch_file, launch_args)], process_listeners=[codes])
     try:
         parent.start()
-    except roslaunch.core.RLException as error:  # a launch file, argument or YAML file roslaunch cannot load
-        print(f"roslaunch_checked.py: cannot launch {launch_file}: {' '.join(str(error).split())}", file=sys.stderr)
+    except Exception as error:  # noqa: BLE001 (a launch file, argument or YAML file roslaunch cannot load; an
+        # $(eval) of a bad argument raises whatever Python raises; a number XML-RPC cannot carry, OverflowError)
+        reason = " ".join(str(error).split())
+        if not isinstance(error, roslaunch.core.RLException):
+            reason = f"{type(error).__name__}: {reason}{too_big_for_ros(parent)}"
+        print(f"roslaunch_checked.py: cannot launch {launch_file}: {reason}", file=sys.stderr)
         parent.shutdown()
         return 1
     # Required nodes end the launch through the listener instead, without the banner.

@@ -93,7 +93,7 @@ class SimNode:
         self._paused = param(params, "paused", bool, "~", False)
         self.command_timeout = param(params, "command_timeout", float, "~", 2.0, minimum=0.0)
         self.pub_clock_period = 1.0 / param(params, "pub_clock_frequency", float, "~", 100.0, minimum=1e-3)
-        seed = param(params, "seed", int, "~", 0)
+        seed = param(params, "seed", int, "~", 0, minimum=0)  # numpy's seeds are >= 0; a ROS int is < 2**31
         gui = param(params, "gui", bool, "~", False)
         description_param = rospy.resolve_name("robot_description")
         if not rospy.has_param(description_param):

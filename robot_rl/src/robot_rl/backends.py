@@ -30,6 +30,7 @@ if TYPE_CHECKING:
     from .task import RobotSpec
 
 SIM_NODE = "/pybullet_sim"  # the sim node's name in every launch file: its private params describe the robot
+STAMP_TOLERANCE_S = 1e-6  # a lockstep answer's stamp vs the one expected (the sim counts time in whole ns)
 SensorReading = OdometryReading | ImuReading | ContactReading
 R = TypeVar("R", OdometryReading, ImuReading, ContactReading)
 
@@ -163,15 +164,20 @@ class RosBackend(Backend):
     The robot (topics, controllers, sensors) is read from the sim node's own parameters, so the env
     and the sim cannot disagree; `robot` is the robot the caller expects, checked against them.
     Makes this process a ROS node (init_ros_node) if it is not one yet. Pauses the sim for lockstep;
-    close() leaves it running again if it was running before."""
+    close() leaves it running again if it was running before.
+    Every answer's stamp is checked against the sim the env started with: a step advances sim time by
+    exactly its physics steps times the time step read at start, a reset_world keeps it, a
+    reset_simulation restarts it at 0. A sim changed from outside (its time step set, or reset, by
+    another node) raises a SimConnectionError saying what changed."""
 
-    def __init__(self, robot: RobotSpec, timeout: float = 10.0, sim_node: str = SIM_NODE):
+    def __init__(self, robot: RobotSpec, timeout: float = 10.0, sim_node: str = SIM_NODE, hint: str | None = None):
+        """`hint`: what to check when the sim does not answer (default: whether its launch file runs)."""
         import rospy
 
         from pybullet_sim.client import SimConnection, SimConnectionError
 
         init_ros_node("robot_rl_env")
-        hint = f"is the sim node running? (e.g. {robot.sim_launch})"
+        hint = hint or f"is the sim node running? (e.g. {robot.sim_launch})"
         self.timeout = timeout
         self.sim = SimConnection(timeout, hint)  # waits (bounded) for the sim node's services
         try:
@@ -192,6 +198,7 @@ class RosBackend(Backend):
         self._sensor_types = [sensor.type for sensor in self.config.sensors]
         self._was_running = not self.sim.is_paused()  # close() leaves the sim as it found it
         self.sim.pause()
+        self._stamp: float | None = None  # sim time of the last answer: the next one is checked against it
 
     def _readings(self, packed: Any) -> Readings:
         """Readings from a pybullet_sim/PackedReadings answer."""
@@ -205,7 +212,43 @@ class RosBackend(Backend):
 
     def reset(self, restart_time: bool = False) -> Readings:
         self._pending = {}  # a reset restarts the controllers, as in the World: earlier commands are gone
-        return self._readings(self.sim.reset_packed(restart_time))
+        readings = self._readings(self.sim.reset_packed(restart_time))
+        expected = 0.0 if restart_time else self._stamp
+        self._check_stamp(readings.stamp, expected, "reset_simulation (time back to 0)" if restart_time else
+                          "reset_world (time goes on)")
+        return readings
+
+    def _check_stamp(self, stamp: float, expected: float | None, what: str) -> None:
+        """SimConnectionError if the sim's answer to `what` is not stamped `expected` (None: not known yet)."""
+        from pybullet_sim.client import SimConnectionError
+        previous, self._stamp = self._stamp, stamp
+        if expected is None or abs(stamp - expected) <= STAMP_TOLERANCE_S:
+            return
+        time_step = self._current_time_step()
+        if time_step is not None and abs(time_step - self.time_step) > 1e-12:
+            change = f"its time step is now {time_step:g} s, this env started with {self.time_step:g} s " \
+                     f"(set_physics_properties called by another node?)"
+        elif previous is not None and stamp < previous:
+            change = f"its time went back from {previous:.6f} s to {stamp:.6f} s (reset by another node?)"
+        else:
+            change = f"after {what} its time is {stamp:.6f} s, expected {expected:.6f} s"
+        raise SimConnectionError(f"the sim was changed from outside: {change}; every step must last the "
+                              f"running_step the env started with: check what else talks to the sim node's "
+                              f"services, and restart the sim")
+
+    def _current_time_step(self) -> float | None:
+        """The sim's time step now (Gazebo's get_physics_properties), or None if it does not answer."""
+        import rospy
+
+        from gazebo_msgs.srv import GetPhysicsProperties
+        from pybullet_sim.client import PHYSICS_SERVICE
+        proxy = rospy.ServiceProxy(PHYSICS_SERVICE, GetPhysicsProperties)
+        try:
+            return float(proxy().time_step)
+        except (rospy.ServiceException, rospy.ROSException, OSError):
+            return None
+        finally:
+            proxy.close()
 
     def set_command(self, controller: str, value: float) -> None:
         if controller not in self._controllers:
@@ -216,7 +259,10 @@ class RosBackend(Backend):
     def step(self, physics_steps: int) -> Readings:
         pending = self._pending
         self._pending = {}
-        return self._readings(self.sim.step_packed(physics_steps, list(pending), list(pending.values())))
+        readings = self._readings(self.sim.step_packed(physics_steps, list(pending), list(pending.values())))
+        expected = None if self._stamp is None else self._stamp + physics_steps * self.time_step
+        self._check_stamp(readings.stamp, expected, f"a step of {physics_steps} physics steps")
+        return readings
 
     def render(self, width: int, height: int) -> np.ndarray:
         return self.sim.render(width, height)
@@ -282,6 +328,7 @@ class GazeboStyleBackend(RosBackend):
                 raise SimConnectionError(f"/clock did not advance by {physics_steps} physics steps within "
                                          f"{self.timeout} s")
         self.sim.pause()
+        self._stamp = None  # the latest messages are of no exact time: the next answer is not checked
         return Readings(self._latest(self._joints), {name: self._latest(s) for name, s in self._sensors.items()})
 
     def _latest(self, subscriber: Any) -> Any:

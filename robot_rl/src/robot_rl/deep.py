@@ -15,8 +15,10 @@ is asked for. Agents run on the CPU with one torch thread (the envs' workers nee
   checkpoint being SB3's model.zip and our agent.json (JSON: the agent's params and the counters).
 - Resume rebuilds the model from the run's params (params.yaml, agent.json) and loads only the weights
   from model.zip (SB3's set_parameters: torch tensors read with weights_only; SB3's pickled `data` is
-  never unpickled), with the counters (episodes, env steps, SB3's num_timesteps, so DQN's exploration
-  schedule goes on where it was) from agent.json. Not saved: DQN's replay buffer (SB3 pickles it) and
+  never unpickled) before any file of the run changes: model.zip must have the sha256 agent.json
+  recorded when it was written and fit the rebuilt model, else one line naming model.zip (a
+  RunFileError). The counters (episodes, env steps, SB3's num_timesteps, so DQN's exploration
+  schedule goes on where it was) come from agent.json. Not saved: DQN's replay buffer (SB3 pickles it) and
   the optimiser's RNG streams, so a resumed DQN first collects `learning_starts` new transitions with
   its current policy before it trains again, and a resumed run is not bit-for-bit the uninterrupted
   one; PPO's rollout under way at the checkpoint is collected anew.
@@ -26,9 +28,11 @@ is asked for. Agents run on the CPU with one torch thread (the envs' workers nee
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import gymnasium
@@ -41,8 +45,8 @@ from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 
 from .ledger import DEFAULT_HOOKS, Learner, RunLedger, TrainingHooks, TrainingState, format_duration, restored_state
-from .params import ParamError, Params, TaskParams, param
-from .results import EpisodeRecord, RunDirectory, aggregate
+from .params import MAX_COUNT, ParamError, Params, TaskParams, param
+from .results import EpisodeRecord, RunDirectory, RunFileError, aggregate
 from .task import Episode, TaskSpec
 from .vector import EnvWorkers, worker_seeds
 
@@ -51,6 +55,36 @@ if TYPE_CHECKING:
     from .evaluation import TrainedRun
 
 CHECKPOINT_FORMAT = "robot_rl.deep_checkpoint/1"
+PARTIAL_MODEL = "model.partial.zip"  # model.zip being written
+
+
+def _available_memory() -> int | None:
+    """MemAvailable of /proc/meminfo in bytes (None where there is none)."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return None
+
+
+def _sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _one_line_reason(error: BaseException) -> str:
+    """An error of zipfile, torch or SB3 in one short line; torch's advice to load with weights_only=False (which
+    would run whatever the file holds) is left out."""
+    text = " ".join(str(error).split())
+    if "weights_only" in text:
+        return "it holds more than torch tensors (refused: loading it could run code)"
+    return f"{type(error).__name__}: {text[:200]}{'...' if len(text) > 200 else ''}"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -67,23 +101,40 @@ class NetworkParams(Params):
         """SB3's policy_kwargs for hidden layers of these sizes."""
         raise NotImplementedError
 
+    def buffer_bytes(self, observation_size: int, n_envs: int) -> int:
+        """The bytes the algorithm's buffer of transitions takes."""
+        raise NotImplementedError
+
+    def check_memory(self, observation_size: int, n_envs: int) -> None:
+        """ValueError in one line when the buffer would not fit the memory available (SB3 would allocate it and
+        die with a MemoryError, or the kernel would end the process)."""
+        needed, available = self.buffer_bytes(observation_size, n_envs), _available_memory()
+        if available is not None and needed > available:
+            raise ValueError(f"the agent's buffer needs {needed / 2**30:.3g} GiB, more than the "
+                             f"{available / 2**30:.3g} GiB of memory available: lower buffer_size (DQN) or n_steps "
+                             f"(PPO) in the agent_config")
+
 
 @dataclass(frozen=True, kw_only=True)
 class DqnParams(NetworkParams):
     """Stable-Baselines3 DQN's arguments (gamma is the task's); see robot_rl/config/dqn.yaml."""
 
-    buffer_size: int = param(low=1, doc="replay buffer capacity (transitions)")
-    learning_starts: int = param(low=0, doc="transitions collected before the first gradient step")
-    batch_size: int = param(low=1, doc="transitions per gradient step")
-    train_freq: int = param(low=1, doc="env steps (per env) between two trainings")
-    gradient_steps: int = param(low=1, doc="gradient steps per training")
-    target_update_interval: int = param(low=1, doc="env steps between two target network updates")
+    buffer_size: int = param(low=1, high=MAX_COUNT, doc="replay buffer capacity (transitions)")
+    learning_starts: int = param(low=0, high=MAX_COUNT, doc="transitions collected before the first gradient step")
+    batch_size: int = param(low=1, high=MAX_COUNT, doc="transitions per gradient step")
+    train_freq: int = param(low=1, high=MAX_COUNT, doc="env steps (per env) between two trainings")
+    gradient_steps: int = param(low=1, high=MAX_COUNT, doc="gradient steps per training")
+    target_update_interval: int = param(low=1, high=MAX_COUNT, doc="env steps between two target network updates")
     exploration_fraction: float = param(low=0.0, high=1.0, doc="share of the step budget over which epsilon falls")
     exploration_initial_eps: float = param(low=0.0, high=1.0, doc="epsilon at the start")
     exploration_final_eps: float = param(low=0.0, high=1.0, doc="epsilon at the end of the fall")
 
     def algorithm(self) -> Callable[..., BaseAlgorithm]:
         return DQN
+
+    def buffer_bytes(self, observation_size: int, n_envs: int) -> int:
+        """SB3's replay buffer: per transition an observation, the next one (float32), action, reward, done, timeout."""
+        return self.buffer_size * (2 * 4 * observation_size + 8 + 4 + 4 + 4)
 
     def policy_kwargs(self, network: list[int]) -> dict[str, Any]:
         return {"net_arch": network}
@@ -93,15 +144,19 @@ class DqnParams(NetworkParams):
 class PpoParams(NetworkParams):
     """Stable-Baselines3 PPO's arguments (gamma is the task's); see robot_rl/config/ppo.yaml."""
 
-    n_steps: int = param(low=1, doc="env steps per env between two updates")
-    batch_size: int = param(low=1, doc="minibatch size")
-    n_epochs: int = param(low=1, doc="passes over each rollout")
+    n_steps: int = param(low=1, high=MAX_COUNT, doc="env steps per env between two updates")
+    batch_size: int = param(low=1, high=MAX_COUNT, doc="minibatch size")
+    n_epochs: int = param(low=1, high=MAX_COUNT, doc="passes over each rollout")
     gae_lambda: float = param(low=0.0, high=1.0, doc="GAE lambda")
     clip_range: float = param(low=0.0, low_open=True, doc="PPO's clip range")
     ent_coef: float = param(low=0.0, doc="entropy bonus weight")
 
     def algorithm(self) -> Callable[..., BaseAlgorithm]:
         return PPO
+
+    def buffer_bytes(self, observation_size: int, n_envs: int) -> int:
+        """SB3's rollout buffer (float32): per env step an observation, action, reward, return, advantage, value..."""
+        return self.n_steps * n_envs * 4 * (observation_size + 7)
 
     def policy_kwargs(self, network: list[int]) -> dict[str, Any]:
         return {"net_arch": {"pi": network, "vf": network}}
@@ -251,6 +306,7 @@ class DeepTrainer(Learner):
         self.max_steps = max_steps if max_steps is not None else params.nepisodes * params.nsteps  # at most
         self.n_envs = self.env.num_envs
         run.checkpoint_name = agent.checkpoint_name
+        agent_params.check_memory(int(np.prod(self.env.observation_space.shape or (1,))), self.env.num_envs)
         self.model = build_model(agent_params, self.env, params.gamma, params.seed)
         self.agent_params = agent_params
         self.schedule: EpisodeSchedule | None = None
@@ -263,7 +319,6 @@ class DeepTrainer(Learner):
         self._timesteps_offset = self._steps_at_start = 0
         if resume:
             self.state, num_timesteps = run.prepare_resume(self._restore)
-            self.model.set_parameters(str(run.model_zip), exact_match=True, device="cpu")
             self.model.num_timesteps = num_timesteps
             if isinstance(self.model, DQN):  # its replay buffer was not saved: fill it anew before training
                 self.model.learning_starts = num_timesteps + self.model.learning_starts
@@ -273,7 +328,7 @@ class DeepTrainer(Learner):
         if self.schedule is not None:
             self.schedule.progress = self.state.episode / params.nepisodes
         self.ledger = RunLedger(run, task, params.nepisodes, self.state, self, hooks, n_envs=self.n_envs,
-                                count_env_steps=self._count_steps)
+                                count_env_steps=self._count_steps, max_steps=max_steps)
 
     def _restore(self, checkpoint: dict[str, Any]) -> tuple[TrainingState, int]:
         """The counters of a checkpoint, checked against this run (ValueError/KeyError/TypeError if not)."""
@@ -285,19 +340,44 @@ class DeepTrainer(Learner):
         num_timesteps = checkpoint["num_timesteps"]
         if not (isinstance(num_timesteps, int) and num_timesteps >= 0):
             raise ValueError(f"num_timesteps {num_timesteps!r} is not a count")
-        if not self.run.model_zip.is_file():
-            raise ValueError(f"{self.run.model_zip} is missing")
+        self._load_weights(checkpoint.get("model_sha256"))
         return state, num_timesteps
 
+    def _load_weights(self, digest: Any) -> None:
+        """The weights of model.zip into the rebuilt model, if it is the file agent.json recorded (`digest`;
+        None in a checkpoint written before digests were) and fits the model; else RunFileError. A checkpoint
+        cut short after agent.json but before its model.partial.zip became model.zip is completed first."""
+        model_zip, partial = self.run.model_zip, self.run.path / PARTIAL_MODEL
+        if digest is not None and not isinstance(digest, str):
+            raise ValueError(f"model_sha256 {digest!r} is not a digest")
+        if digest is not None and partial.is_file() and _sha256(partial) == digest:
+            partial.replace(model_zip)  # the checkpoint agent.json describes, written whole
+        if not model_zip.is_file():
+            raise RunFileError(f"{model_zip}: missing: the checkpoint {self.run.checkpoint_json} needs it")
+        if digest is not None and _sha256(model_zip) != digest:
+            raise RunFileError(f"{model_zip}: not the model.zip this run's checkpoint recorded (its sha256 differs "
+                               f"from {self.run.checkpoint_json}'s): damaged, cut short, or another run's")
+        try:
+            self.model.set_parameters(str(model_zip), exact_match=True, device="cpu")
+        except Exception as error:  # noqa: BLE001 (zipfile, torch and SB3 each raise their own)
+            raise RunFileError(f"{model_zip}: not weights of this run's {self.agent.name} model: "
+                               f"{_one_line_reason(error)}") from None
+
     def save_checkpoint(self) -> None:
-        """model.zip (SB3's format), then agent.json (ours), each written whole."""
-        partial = self.run.path / "model.partial.zip"
-        self.model.save(str(partial))
+        """model.partial.zip (SB3's format), agent.json (ours, with that file's sha256), then model.partial.zip
+        renamed model.zip: a resume finds agent.json with its model.zip, or completes the rename. A write that
+        fails leaves no partial file."""
+        partial = self.run.path / PARTIAL_MODEL
+        try:
+            self.model.save(str(partial))
+            self.run.checkpoint({"format": CHECKPOINT_FORMAT, "task": self.task.env_id, "agent": self.agent.name,
+                                 "agent_params": self.agent_params.to_mapping(), "envs": self.n_envs,
+                                 "episode": self.state.episode, "num_timesteps": int(self.model.num_timesteps),
+                                 "model_sha256": _sha256(partial), "state": dataclasses.asdict(self.state)})
+        except BaseException:
+            partial.unlink(missing_ok=True)
+            raise
         partial.replace(self.run.model_zip)
-        self.run.checkpoint({"format": CHECKPOINT_FORMAT, "task": self.task.env_id, "agent": self.agent.name,
-                             "agent_params": self.agent_params.to_mapping(), "envs": self.n_envs,
-                             "episode": self.state.episode, "num_timesteps": int(self.model.num_timesteps),
-                             "state": dataclasses.asdict(self.state)})
 
     def _exploration(self) -> float:
         """The epsilon column: DQN's exploration rate (PPO explores by sampling its policy: NaN)."""
@@ -385,6 +465,10 @@ def greedy_policy(run: TrainedRun, checkpoint: dict[str, Any]) -> Callable[[gymn
     def policy(env: gymnasium.Env[Any, Any], _seed: int) -> DeepPolicy:
         torch.set_num_threads(1)
         model = build_model(agent_params, DummyVecEnv([lambda: env]), run.params.gamma, run.params.seed)
-        model.set_parameters(str(run.path.with_name("model.zip")), exact_match=True, device="cpu")
+        model_zip = run.path.with_name("model.zip")
+        try:
+            model.set_parameters(str(model_zip), exact_match=True, device="cpu")
+        except Exception as error:  # noqa: BLE001 (zipfile, torch and SB3 each raise their own)
+            raise RunFileError(f"{model_zip}: not weights of this run's model: {_one_line_reason(error)}") from None
         return DeepPolicy(model)
     return policy

@@ -35,6 +35,7 @@ from .params import TaskParams
 from .task import TaskSpec
 
 P = TypeVar("P", bound=TaskParams)
+MAX_PHYSICS_STEPS = 100_000  # pybullet_sim's Step.MAX_STEPS: the most one lockstep step may advance
 StepOutcome = tuple[dict[str, float], bool, dict[str, Any]]   # reward terms, terminated, extra info
 
 
@@ -72,8 +73,13 @@ class RobotEnv(gymnasium.Env[np.ndarray, int], Generic[P], abc.ABC):
         self.running_step = self.params.running_step
         self.metadata = {**self.metadata, "render_fps": 1.0 / self.running_step}
         self.physics_steps = round(self.running_step / time_step)
+        if self.physics_steps > MAX_PHYSICS_STEPS:
+            self.backend.close()
+            raise ValueError(f"running_step {self.running_step} s is {self.physics_steps} physics steps of {time_step} "
+                             f"s, more than the {MAX_PHYSICS_STEPS} one sim step may take")
         self.settle_steps = round(self._settle_time() / time_step)
         self.readings: Readings | None = None
+        self.closed = False
         self.action_space, self.observation_space = self._spaces()
 
     # -- task hooks -----------------------------------------------------------------------------
@@ -107,6 +113,7 @@ class RobotEnv(gymnasium.Env[np.ndarray, int], Generic[P], abc.ABC):
 
     # -- gymnasium API --------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict]:
+        self._check_open()
         super().reset(seed=seed)
         self.readings = self.backend.reset(restart_time=seed is not None)
         self._reset_commands()
@@ -119,6 +126,7 @@ class RobotEnv(gymnasium.Env[np.ndarray, int], Generic[P], abc.ABC):
         return self._observe(self.readings), {"sim_time": self.readings.stamp}
 
     def step(self, action: int) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        self._check_open()
         if self.readings is None:
             raise gymnasium.error.ResetNeeded("call reset() before step()")
         # A direct range check first: Discrete.contains costs as much as a tenth of a lockstep exchange.
@@ -138,6 +146,7 @@ class RobotEnv(gymnasium.Env[np.ndarray, int], Generic[P], abc.ABC):
 
     def render(self) -> np.ndarray | None:
         """rgb_array: the current frame; human: update the view and keep sim time no faster than wall time."""
+        self._check_open()
         if self.render_mode == "rgb_array":
             return self.backend.render(self.render_width, self.render_height)
         if self.render_mode == "human":
@@ -153,4 +162,11 @@ class RobotEnv(gymnasium.Env[np.ndarray, int], Generic[P], abc.ABC):
         return None
 
     def close(self) -> None:
-        self.backend.close()
+        """Release the backend (over ROS: the sim is left as it was found); a second close does nothing."""
+        if not self.closed:
+            self.closed = True
+            self.backend.close()
+
+    def _check_open(self) -> None:
+        if self.closed:
+            raise gymnasium.error.ClosedEnvironmentError(f"{self.task.env_id}: the env is closed: make a new one")

@@ -60,6 +60,9 @@ def restored_state(checkpoint: dict[str, Any], checkpoint_format: str, task: Tas
 
 
 def format_duration(seconds: float) -> str:
+    """H:MM:SS; "?" for a duration not known yet (NaN)."""
+    if not math.isfinite(seconds):
+        return "?"
     h, rest = divmod(int(seconds), 3600)
     m, s = divmod(rest, 60)
     return f"{h}:{m:02d}:{s:02d}"
@@ -112,21 +115,23 @@ class RunLedger:
     """The bookkeeping of `run`, trained on `task` for `nepisodes` episodes from `n_envs` envs.
 
     `count_env_steps`, if given, counts the env steps itself (SB3's num_timesteps, which include the
-    steps of episodes under way); otherwise they are the steps of the episodes that ended."""
+    steps of episodes under way); otherwise they are the steps of the episodes that ended. With a
+    budget of `max_steps` env steps, the progress line counts steps instead of episodes."""
 
     def __init__(self, run: RunDirectory, task: TaskSpec[Any], nepisodes: int, state: TrainingState, learner: Learner,
-                 hooks: TrainingHooks, n_envs: int = 1, count_env_steps: Callable[[], int] | None = None):
+                 hooks: TrainingHooks, n_envs: int = 1, count_env_steps: Callable[[], int] | None = None,
+                 max_steps: int | None = None):
         self.run, self.task, self.nepisodes, self.state, self.learner = run, task, nepisodes, state, learner
         self.log, self.log_episode = hooks.log, hooks.log_episode or hooks.log
         self.on_episode, self.should_stop = hooks.on_episode, hooks.should_stop
         self.checkpoint_every, self.progress_every_s = hooks.checkpoint_every, hooks.progress_every_s
-        self.n_envs, self.count_env_steps = n_envs, count_env_steps
+        self.n_envs, self.count_env_steps, self.max_steps = n_envs, count_env_steps, max_steps
         self.episodes_per_env = [0] * n_envs
 
     def start(self) -> None:
         """Start the clocks (a resumed run's wall time goes on) and read the recent headline metrics."""
         now = time.monotonic()
-        self._started, self._start_episode = now, self.state.episode
+        self._started, self._start_episode, self._start_steps = now, self.state.episode, self.state.env_steps
         self._wall_start, self._next_progress = now - self.state.wall_time, now + self.progress_every_s
         self.headline: list[MetricValue] = [r.metrics.get(self.task.headline_metric, math.nan)
                                             for r in self.run.read_episodes()[-PROGRESS_WINDOW:]]
@@ -178,13 +183,15 @@ class RunLedger:
             return
         self._next_progress = now + self.progress_every_s
         self.sync_env_steps()
-        state, total = self.state, self.nepisodes
-        done = state.episode - self._start_episode
-        eta = (total - state.episode) * (now - self._started) / done if done else math.nan
+        state = self.state
+        unit, count, total, start = ("step", state.env_steps, self.max_steps, self._start_steps) if self.max_steps \
+            else ("episode", state.episode, self.nepisodes, self._start_episode)
+        eta = (total - count) * (now - self._started) / (count - start) if count > start else math.nan
         name, value = next(iter(aggregate({self.task.headline_metric: self.headline}).items()))
-        self.log(f"progress: episode {state.episode}/{total} ({100.0 * state.episode / total:.0f} %), "
+        self.log(f"progress: {unit} {count}/{total} ({100.0 * count / total:.0f} %), "
                  f"{state.env_steps / max(now - self._wall_start, 1e-9):.0f} env steps/s, ETA {format_duration(eta)}, "
-                 f"{name} over the last {len(self.headline)} episodes: {value:.3g}{self.learner.exploration_label()}")
+                 f"{name} over the last {len(self.headline)} episodes: {'n/a' if value is None else f'{value:.3g}'}"
+                 f"{self.learner.exploration_label()}")
 
     @contextmanager
     def saved_on_stop(self, rollback: Callable[[], None] = _no_op) -> Iterator[None]:
@@ -200,12 +207,13 @@ class RunLedger:
             raise
 
     def _save_quietly(self, reason: str) -> None:
-        """Checkpoint and summary (incomplete, `reason`); a failure to write is logged, not raised."""
-        try:
-            self.checkpoint()
-            self.finish(stopped=reason)
-        except (OSError, ValueError) as error:  # the original error matters more; say why nothing was saved
-            self.log(f"could not save the run after episode {self.state.episode}: {error}")
+        """Checkpoint and summary (incomplete, `reason`), each if it can be written (on a full disk the small
+        summary may be, when the checkpoint is not); a failure to write is logged, not raised."""
+        for what, save in (("checkpoint", self.checkpoint), ("summary", lambda: self.finish(stopped=reason))):
+            try:
+                save()
+            except (OSError, ValueError) as error:  # the original error matters more; say what was not saved
+                self.log(f"could not save the run's {what} after episode {self.state.episode}: {error}")
 
     def close(self, done: bool, stopped: str | None = None) -> dict[str, Any]:
         """The last checkpoint and summary.json: complete if `done` and not `stopped`, else "interrupted"

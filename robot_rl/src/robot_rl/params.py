@@ -21,6 +21,9 @@ import yaml
 from robot_rl.atomic import StrPath
 
 _MERGE_TAG = "tag:yaml.org,2002:merge"
+MAX_SEED = 2**31 - 1          # a seed is a ROS param (XML-RPC's 32-bit int) and seeds numpy ([0, 2**32))
+MAX_COUNT = 10**9             # episodes, steps per episode: beyond any run, and within a ROS param
+MAX_RUNNING_STEP_S = 100.0    # the sim's longest step (pybullet_sim Step.MAX_STEPS of its default 1 ms)
 P = TypeVar("P", bound="Params")
 
 
@@ -127,10 +130,10 @@ class TaskParams(Params):
     gamma: float = param(low=0.0, high=1.0, doc="discount factor")
     epsilon: float = param(low=0.0, high=1.0, doc="initial exploration probability")
     epsilon_discount: float = param(low=0.0, high=1.0, doc="epsilon *= this before every episode (while > 0.05)")
-    nepisodes: int = param(low=1, doc="episodes to train")
-    nsteps: int = param(low=1, doc="env steps per episode at most")
-    running_step: float = param(low=0.0, low_open=True, doc="sim seconds per env step")
-    seed: int = param(low=0, default=0, doc="seeds the Q-learning RNG (exploration, tie breaks)")
+    nepisodes: int = param(low=1, high=MAX_COUNT, doc="episodes to train")
+    nsteps: int = param(low=1, high=MAX_COUNT, doc="env steps per episode at most")
+    running_step: float = param(low=0.0, low_open=True, high=MAX_RUNNING_STEP_S, doc="sim seconds per env step")
+    seed: int = param(low=0, high=MAX_SEED, default=0, doc="seeds the Q-learning RNG (exploration, tie breaks)")
     epsilon_min: float = param(low=0.0, high=1.0, default=0.05,
                                doc="epsilon decays only while above this (the tutorial's 0.05)")
     exploration: str = param(choices=("noise", "epsilon_greedy"), default="noise",
@@ -166,6 +169,19 @@ class _UniqueKeyLoader(yaml.SafeLoader):
                 raise ParamError(f"{self.path}: duplicate key '{key}' at line {key_node.start_mark.line + 1}")
             seen.add(key)
         return super().construct_mapping(node, deep=deep)
+
+
+def parse_scalar(text: str) -> Any:
+    """A launch argument's text as YAML types a scalar (as roslaunch types a param: "12" an int, "0.5" a float,
+    "true" a bool), read with the strict loader (no tag is evaluated); `text` itself if it is not a scalar."""
+    loader = _UniqueKeyLoader(text)
+    try:
+        value = loader.get_single_data()
+    except (yaml.YAMLError, ParamError):
+        return text
+    finally:
+        loader.dispose()
+    return value if isinstance(value, (int, float, bool)) else text
 
 
 def load_yaml_file(path: StrPath) -> dict[str, Any]:

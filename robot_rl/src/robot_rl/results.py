@@ -1,14 +1,18 @@
 """Training results on disk: <root>/<results name>/<run>/ plus a <root>/<results name>/latest symlink.
 
-A run directory holds params.yaml, episodes.csv, its agent's checkpoint (robot_rl.agents: qtable.json
+A run directory holds .lock, params.yaml, episodes.csv, its agent's checkpoint (robot_rl.agents: qtable.json
 for tabular Q-learning; agent.json beside Stable-Baselines3's model.zip for a deep agent),
 learning_curve.png, summary.json and, once trained, video.mp4 (the greedy policy). Everything except
 the append-only episodes.csv is written atomically; no pickle.
+A trainer that creates or resumes a run holds an exclusive lock (flock) on its .lock file for the rest of
+its process's life, and the kernel drops it when the process ends however it ends: a second trainer of
+the same run folder is refused (RunLockedError) before it writes anything.
 episodes.csv has the columns of every task (COLUMNS) followed by the task's own metrics.
 """
 from __future__ import annotations
 
 import csv
+import fcntl
 import io
 import json
 import os
@@ -27,8 +31,18 @@ COLUMNS = ("episode", "steps", "return", "epsilon", "sim_time", "wall_time")
 LATEST = "latest"
 QTABLE_CHECKPOINT = "qtable.json"
 DEEP_CHECKPOINT = "agent.json"
+LOCK_FILE = ".lock"
 MOVING_AVERAGE = 50
 T = TypeVar("T")
+_held_locks: dict[Path, int] = {}  # run folder -> the descriptor whose flock this process holds for its life
+
+
+class RunLockedError(ValueError):
+    """Another process trains this run folder."""
+
+
+class RunFileError(ValueError):
+    """A file of the run beside the checkpoint (a deep agent's model.zip) cannot be used; str() names it."""
 
 
 @dataclass(frozen=True)
@@ -143,10 +157,22 @@ class RunDirectory:
                     n += 1
                     name = f"{base}-{n}"
         run = cls(robot_dir / name, checkpoint_name)
+        run.lock()
         write_text_atomic(run.params_yaml, yaml.safe_dump(params, sort_keys=True, default_flow_style=False))
         write_text_atomic(run.episodes_csv, ",".join((*COLUMNS, *metric_names)) + "\n")
         symlink_atomic(name, robot_dir / LATEST)
         return run
+
+    @classmethod
+    def named(cls, root: StrPath, robot: str, name: str, checkpoint_name: str = QTABLE_CHECKPOINT) -> RunDirectory:
+        """The run <root>/<robot>/<name>; FileNotFoundError naming the runs there if there is none."""
+        _check_name("run", name)
+        robot_dir = Path(root) / robot
+        if not (robot_dir / name).is_dir():
+            runs = sorted(p.name for p in robot_dir.iterdir() if p.is_dir() and p.name != LATEST) \
+                if robot_dir.is_dir() else []
+            raise FileNotFoundError(f"no run {name!r} under {robot_dir} (runs: {', '.join(runs) or 'none'})")
+        return cls(robot_dir / name, checkpoint_name)
 
     @classmethod
     def latest(cls, root: StrPath, robot: str, checkpoint_name: str = QTABLE_CHECKPOINT) -> RunDirectory:
@@ -156,6 +182,21 @@ class RunDirectory:
         if not link.is_symlink() or not link.is_dir():
             raise FileNotFoundError(f"no previous run under {robot_dir}: start without resume")
         return cls(robot_dir / Path(os.readlink(link)).name, checkpoint_name)
+
+    def lock(self) -> None:
+        """Hold the run's lock for the rest of this process's life (a no-op if it already does);
+        RunLockedError naming the folder if another process holds it."""
+        path = self.path.resolve()
+        if path in _held_locks:
+            return
+        fd = os.open(path / LOCK_FILE, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise RunLockedError(f"{path}: another process is training this run (it holds {path / LOCK_FILE}); "
+                                 f"wait for it to end, or train another run") from None
+        _held_locks[path] = fd
 
     @property
     def metric_names(self) -> tuple[str, ...]:
@@ -224,12 +265,17 @@ class RunDirectory:
         return state
 
     def prepare_resume(self, restore: Callable[[dict[str, Any]], T]) -> T:
-        """Load the checkpoint and restore it with `restore` (which raises ValueError on anything wrong),
+        """Load the checkpoint and restore it with `restore` (which raises ValueError on anything wrong,
+        naming the checkpoint, or a RunFileError naming another file of the run),
         then drop episodes.csv rows logged after it (they will be re-run). Nothing is written unless
-        the whole checkpoint restored."""
+        the whole checkpoint restored. Takes the run's lock first (RunLockedError if another process
+        trains it)."""
+        self.lock()
         state = self.load_checkpoint()
         try:
             restored = restore(state)
+        except RunFileError:
+            raise
         except (KeyError, TypeError, ValueError) as error:
             reason = f"missing {error}" if isinstance(error, KeyError) else str(error)
             raise ValueError(f"{self.checkpoint_json}: not a usable checkpoint: {reason}") from None

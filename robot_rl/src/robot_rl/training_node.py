@@ -2,18 +2,14 @@
 
 Picks the task (private param ~task, default the package's first), reads and validates its params
 from the parameter server (one line naming the key and the file, before anything is written),
-makes the env over ROS, opens a new run or the latest one to resume, trains, and publishes the
-rewards. Private params: ~task, ~config_file (named in errors), ~results_dir (default
-$ROS_HOME/training_results), ~resume, ~nepisodes and ~seed (optional overrides of the YAML's),
-~timeout (s, every wait on the sim), ~quiet (the per-episode "EP:" lines go to the debug log
-level), ~video (default true: once trained, video.mp4 next to learning_curve.png shows one greedy
-episode of the final policy, at most TRAINING_VIDEO_S of sim time, rendered on the direct backend so
-that the ROS sim is not needed),
-~agent (a name in robot_rl.agents: qlearn, the tutorials' tabular Q-learning; dqn or ppo,
-Stable-Baselines3's, their runs going to <results name>-<agent>/), ~agent_config (a deep agent's YAML,
-default robot_rl/config/<agent>.yaml), ~max_steps (a deep agent's env step budget; 0: nepisodes decides),
-~envs (1: the env over this master's sim; N > 1: N workers, each with a master and a sim of its own,
-see robot_rl.vector; the launch's own sim then idles).
+makes the env over ROS, opens a new run or the one to resume, trains, and publishes the rewards.
+The node's own private params are `NodeParams` (validated as the tasks' are: one line naming the
+key), plus ~nepisodes and ~seed, optional overrides of the YAML's. A relative or ~ results_dir is
+resolved against ~launch_dir, the folder roslaunch ran in (roslaunch runs nodes in ROS_HOME). Once
+trained, video.mp4 next to learning_curve.png shows one greedy episode of the final policy (at most
+TRAINING_VIDEO_S of sim time, rendered on the direct backend, so the ROS sim is not needed). With
+~agent dqn or ppo the runs go to <results name>-<agent>/; with ~envs N > 1 the env is N workers, each
+with a master and a sim of its own (robot_rl.vector; the launch's own sim then idles).
 
 SIGINT or SIGTERM (Ctrl-C, roslaunch shutting down) stops the run cleanly (pybullet_sim.shutdown: a rospy
 shutdown, which ends every wait on the sim at once, and a request to stop, never an exception at whatever
@@ -23,9 +19,11 @@ Exit codes: 0 trained, 1 failed (one FATAL line says why), 130 interrupted.
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -36,10 +34,10 @@ from std_msgs.msg import Float64
 from pybullet_sim.client import SimConnectionError
 from pybullet_sim.shutdown import shutdown_on_signals, shutting_down
 
-from .agents import DEFAULT_AGENT, AgentSpec, find_agent
+from .agents import DEFAULT_AGENT, AgentSpec, Trainer, find_agent
 from .evaluation import TrainedRun, VideoRequest, evaluate
 from .ledger import TrainingHooks
-from .params import ParamError, Params, TaskParams, load_yaml_file
+from .params import ParamError, Params, TaskParams, load_yaml_file, param, parse_scalar
 from .results import RunDirectory
 from .task import TaskSpec, find_task, make_env
 from .vector import WorkerError
@@ -60,13 +58,65 @@ def _interrupted(episodes: int, run: RunDirectory) -> int:
     return INTERRUPTED
 
 
-def _read_params(task: TaskSpec[Any]) -> TaskParams:
-    config_file = rospy.get_param("~config_file", "rosparam")
+MAX_ENVS_PER_CORE = 2  # envs:=N beyond this many per core: each env is a sim node and a master, stepped flat out
+
+
+@dataclass(frozen=True, kw_only=True)
+class NodeParams(Params):
+    """The training node's private params (~name), from the launch file's arguments."""
+
+    task: str = param(default="", doc="the task to train; empty: the package's first")
+    config_file: str = param(default="rosparam", doc="the task's YAML (named in errors)")
+    results_dir: str = param(default="", doc="where runs go; empty: $ROS_HOME/training_results")
+    launch_dir: str = param(default="", doc="the folder roslaunch ran in: a relative results_dir is under it")
+    run: str = param(default="", doc="the run's name; empty: the UTC time (new) or latest (resume)")
+    resume: bool = param(default=False, doc="continue the run from its checkpoint")
+    timeout: float = param(low=0.0, low_open=True, high=3600.0, default=10.0, doc="s, every wait on the sim")
+    quiet: bool = param(default=False, doc="the EP: lines at debug level")
+    video: bool = param(default=True, doc="video.mp4 of the greedy policy once trained")
+    agent: str = param(default=DEFAULT_AGENT, doc="a name in robot_rl.agents")
+    agent_config: str = param(default="", doc="a deep agent's YAML; empty: robot_rl/config/<agent>.yaml")
+    max_steps: int = param(low=0, high=10**12, default=0, doc="a deep agent's env step budget; 0: nepisodes decides")
+    envs: int = param(low=1, default=1, doc="envs; more than 1: workers with a master and a sim each")
+
+    def check(self, source: str) -> None:
+        cores = os.cpu_count() or 1
+        if self.envs > MAX_ENVS_PER_CORE * cores:
+            raise ParamError(f"{source}: parameter 'envs' = {self.envs} is more than {MAX_ENVS_PER_CORE} per core "
+                             f"({MAX_ENVS_PER_CORE * cores} on this machine's {cores}): each env steps a sim node "
+                             f"of its own as fast as it can, and more would only slow every one down")
+
+    @property
+    def results_root(self) -> Path:
+        """results_dir with ~ expanded, and a relative one under launch_dir (roslaunch runs nodes in ROS_HOME)."""
+        if not self.results_dir:
+            return Path(rospkg.get_ros_home()) / "training_results"
+        path = Path(self.results_dir).expanduser()
+        return path if path.is_absolute() else Path(self.launch_dir or os.getcwd()) / path
+
+
+NUMBERS = ("max_steps", "envs", "nepisodes", "seed", "timeout")  # private params the launch files pass as text
+
+
+def _private(names: Sequence[str]) -> dict[str, Any]:
+    """The node's private params that are set; numbers given as text (the launch files pass them with type="str",
+    as a value beyond XML-RPC's 32-bit ints would stop roslaunch with a traceback) read as YAML reads them."""
+    values = {name: rospy.get_param(f"~{name}") for name in names if rospy.has_param(f"~{name}")}
+    return {name: parse_scalar(value) if isinstance(value, str) and name in NUMBERS else value
+            for name, value in values.items()}
+
+
+def _read_node_params() -> NodeParams:
+    return NodeParams.from_mapping(_private([f.name for f in dataclasses.fields(NodeParams)]), rospy.get_name())
+
+
+def _read_params(task: TaskSpec[Any], node: NodeParams) -> TaskParams:
+    config_file = node.config_file
     if Path(config_file).is_file():
         load_yaml_file(config_file)  # rosparam keeps the last of two equal keys; a strict loader refuses them
     namespace = task.params_namespace
     params = task.params_type.from_mapping(rospy.get_param(namespace, {}), f"{config_file} ({namespace.rstrip('/')}/)")
-    overrides = {key: rospy.get_param(f"~{key}") for key in ("nepisodes", "seed") if rospy.has_param(f"~{key}")}
+    overrides = _private(("nepisodes", "seed"))
     return params.with_changes(rospy.get_name(), **overrides) if overrides else params
 
 
@@ -91,25 +141,33 @@ def _write_video(tasks: Sequence[TaskSpec[Any]], task: TaskSpec[Any], run: RunDi
                   report["horizon_s"], time.monotonic() - start, metrics)
 
 
-def _read_agent() -> tuple[AgentSpec, Params | None, int, int | None]:
-    """(agent, its own params or None, envs, max_steps or None) from the private params."""
-    name, envs, max_steps = rospy.get_param("~agent", DEFAULT_AGENT), rospy.get_param("~envs", 1), \
-        rospy.get_param("~max_steps", 0)
-    if not (isinstance(envs, int) and not isinstance(envs, bool) and envs >= 1):
-        raise ParamError(f"{rospy.get_name()}: parameter '~envs' must be a whole number >= 1, got {envs!r}")
-    if not (isinstance(max_steps, int) and not isinstance(max_steps, bool) and max_steps >= 0):
-        raise ParamError(f"{rospy.get_name()}: parameter '~max_steps' must be a whole number >= 0, got {max_steps!r}")
+def _read_agent(node: NodeParams) -> tuple[AgentSpec, Params | None]:
+    """The agent and its own params (None: it has none)."""
     try:
-        agent = find_agent(name)
+        agent = find_agent(node.agent)
     except ParamError as error:
         raise ParamError(f"{rospy.get_name()}: parameter '~agent': {error}") from None
-    config = rospy.get_param("~agent_config", "")
     try:
-        agent_params = agent.load_params(Path(config) if config else None)
+        agent_params = agent.load_params(Path(node.agent_config) if node.agent_config else None)
     except ModuleNotFoundError as error:
-        raise ParamError(f"agent {name} needs {error.name}, which is not installed: ./ws run ... agent:={name} "
-                         f"installs requirements-deep.txt (or ./ws setup deep)") from None
-    return agent, agent_params, envs, max_steps or None
+        raise ParamError(f"agent {agent.name} needs {error.name}, which is not installed: ./ws run ... "
+                         f"agent:={agent.name} installs requirements-deep.txt (or ./ws setup deep)") from None
+    return agent, agent_params
+
+
+def _open_run(node: NodeParams, results_name: str, checkpoint_name: str, params: TaskParams,
+              task: TaskSpec[Any]) -> RunDirectory:
+    """The run to train: a new one (named `node.run`, or by the time), or the one to resume (`node.run`, or latest)."""
+    root = node.results_root.resolve()
+    if node.resume:
+        return RunDirectory.named(root, results_name, node.run, checkpoint_name) if node.run else \
+            RunDirectory.latest(root, results_name, checkpoint_name)
+    try:
+        return RunDirectory.create(root, results_name, params.to_mapping(), task.metric_names,
+                                   run_name=node.run or None, checkpoint_name=checkpoint_name)
+    except FileExistsError:
+        raise FileExistsError(f"a run {root / results_name / node.run} exists already: resume:=true run:={node.run} "
+                              f"continues it; a new run needs another name") from None
 
 
 def _make_env(task: TaskSpec[Any], params: TaskParams, agent: AgentSpec, envs: int, timeout: float) -> Any:
@@ -127,28 +185,33 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     def should_stop() -> bool:
         return bool(signals) or shutting_down()
     try:
-        task = find_task(list(tasks), rospy.get_param("~task", tasks[0].name))
-        params = _read_params(task)
-        agent, agent_params, envs, max_steps = _read_agent()
+        node = _read_node_params()
+        task = find_task(list(tasks), node.task or tasks[0].name)
+        params = _read_params(task, node)
+        agent, agent_params = _read_agent(node)
     except ParamError as error:
         return _fail(str(error))
-    results_root = Path(rospy.get_param("~results_dir", str(Path(rospkg.get_ros_home()) / "training_results")))
-    resume = rospy.get_param("~resume", False)
-    timeout = float(rospy.get_param("~timeout", 10.0))
-    log_episode = rospy.logdebug if rospy.get_param("~quiet", False) else rospy.loginfo
-    video = rospy.get_param("~video", True)  # read now: nothing needs the master once training runs
+    results_root = node.results_root
+    log_episode = rospy.logdebug if node.quiet else rospy.loginfo
     try:
-        env = _make_env(task, params, agent, envs, timeout)
-    except (SimConnectionError, WorkerError) as error:
+        env = _make_env(task, params, agent, node.envs, node.timeout)
+    except (SimConnectionError, WorkerError, OSError) as error:  # OSError: e.g. a master refusing, on Ctrl-C
         if should_stop():  # e.g. the sim failed to start and roslaunch is ending the launch
-            rospy.logwarn("stopped before training started: %s", error)
+            if isinstance(error, WorkerError):
+                error.discard_logs()  # the stop's doing, not a fault to look into
+            rospy.logwarn("stopped before training started")
             return INTERRUPTED
         return _fail(str(error))
+    except ValueError as error:  # params the env refuses (e.g. a running_step of more physics steps than a step takes)
+        return _fail(f"{node.config_file}: {error}")
     results_name, checkpoint_name = agent.results_name(task), agent.checkpoint_name
+    run: RunDirectory | None = None
+    trainer: Trainer | None = None
+
+    def episodes_saved() -> int:
+        return trainer.state.episode if trainer is not None else 0
     try:
-        run = RunDirectory.latest(results_root, results_name, checkpoint_name) if resume else \
-            RunDirectory.create(results_root.resolve(), results_name, params.to_mapping(), task.metric_names,
-                                checkpoint_name=checkpoint_name)
+        run = _open_run(node, results_name, checkpoint_name, params, task)
         rospy.loginfo("Results go to %s", run.path)
         reward_pub = rospy.Publisher(task.reward_topic, Float64, queue_size=10)
         episode_reward_pub = rospy.Publisher(task.episode_reward_topic, Float64, queue_size=10)
@@ -167,18 +230,22 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
             publish(episode_reward_pub, cumulated)
         hooks = TrainingHooks(log=rospy.loginfo, log_episode=log_episode, on_step=on_step, on_episode=on_episode,
                               should_stop=should_stop)
-        trainer = agent.make_trainer(env, task, params, run, hooks, resume=resume, agent_params=agent_params,
-                                     max_steps=max_steps)
+        trainer = agent.make_trainer(env, task, params, run, hooks, resume=node.resume, agent_params=agent_params,
+                                     max_steps=node.max_steps or None)
         summary = trainer.train()
-    except (FileNotFoundError, ValueError) as error:
+    except (FileNotFoundError, FileExistsError, ValueError) as error:
         return _fail(str(error))
-    except (WorkerError, SimConnectionError) as error:
-        if should_stop():
-            return _interrupted(trainer.state.episode, run)
-        return _fail(f"training stopped: {error}. Episodes up to episode {trainer.state.episode} are saved in "
-                     f"{run.path}; continue with resume:=true")
-    except OSError as error:  # the results folder: read-only, disk full...
-        return _fail(f"cannot write the results: {error.filename or results_root}: {error.strerror or error}")
+    except (WorkerError, SimConnectionError, OSError) as error:
+        if should_stop():  # the error is the stop's (e.g. the launch's master gone: connection refused)
+            if run is None:
+                rospy.logwarn("stopped before training started: %s", error)
+                return INTERRUPTED
+            return _interrupted(episodes_saved(), run)
+        if isinstance(error, OSError) and not isinstance(error, ConnectionError):  # the results: read-only, full...
+            return _fail(f"cannot write the results: {error.filename or results_root}: {error.strerror or error}")
+        saved = f" Episodes up to episode {episodes_saved()} are saved in {run.path}; continue with resume:=true" \
+            if run is not None else ""
+        return _fail(f"training stopped: {error}.{saved}")
     finally:
         _close_quietly(env)
     if not summary["completed"]:
@@ -186,7 +253,7 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     rospy.loginfo("Training complete: %d episodes, %d env steps in %.1f s (%.0f steps/s). Results: %s",
                   summary["episodes"], summary["env_steps"], summary["wall_time_s"], summary["env_steps_per_s"] or 0.0,
                   run.path)
-    if video:
+    if node.video:
         try:
             _write_video(tasks, task, run, params.seed)
         except (OSError, ValueError, RuntimeError) as error:

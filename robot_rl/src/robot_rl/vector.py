@@ -33,9 +33,11 @@ import select
 import shutil
 import signal
 import tempfile
+import threading
 import time
 import traceback
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -45,6 +47,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from .backends import RosBackend
 from .params import TaskParams
 from .private_sim import PrivateSim, set_pdeathsig
 from .task import TaskSpec, make_env
@@ -56,7 +59,17 @@ PARENT_EXIT_WAIT = 2.0  # s a worker signalled to end waits for its parent's end
 
 
 class WorkerError(RuntimeError):
-    """A worker failed, died or did not answer in time; the message names it and what to check."""
+    """A worker failed, died or did not answer in time; the message names it and what to check, and
+    `log_dir` the temporary folder kept for it (None: the caller's folder)."""
+
+    def __init__(self, message: str, log_dir: Path | None = None):
+        super().__init__(message)
+        self.log_dir = log_dir
+
+    def discard_logs(self) -> None:
+        """Remove the temporary folder kept for the error (when it was a stop's, e.g. Ctrl-C, not a fault's)."""
+        if self.log_dir is not None:
+            shutil.rmtree(self.log_dir, ignore_errors=True)
 
 
 def worker_seeds(seed: int | None, n: int) -> list[int]:
@@ -91,7 +104,10 @@ def _worker_env(index: int, recipe: WorkerRecipe) -> tuple[gymnasium.Env[Any, An
                           ROS_LOG_DIR=str(sim.log_dir), ROS_HOME=str(sim.log_dir))
         import rospy
         rospy.init_node(f"robot_rl_worker{index}", disable_signals=True)  # the parent decides when a worker ends
-        env = make_env(recipe.task, params=recipe.params, backend="ros", ros_timeout=recipe.ros_timeout,
+        backend = RosBackend(recipe.task.robot, timeout=recipe.ros_timeout,
+                             hint=f"the worker's sim node (pid {sim.processes[-1].pid}) is gone or frozen: its log "
+                                  f"is {sim.log_dir / 'sim_node.log'}")
+        env = make_env(recipe.task, params=recipe.params, backend=backend, ros_timeout=recipe.ros_timeout,
                        max_episode_steps=recipe.max_episode_steps, **recipe.env_kwargs)
     except BaseException:
         sim.close()
@@ -108,6 +124,25 @@ def run_as_batch() -> None:
         os.sched_setscheduler(0, os.SCHED_BATCH, os.sched_param(0))
     except (AttributeError, OSError):  # not Linux, or not allowed here
         pass
+
+
+@contextmanager
+def _workers_born_ignoring_sigint() -> Iterator[None]:
+    """Processes started in the block ignore SIGINT from their first instruction (an ignored signal stays ignored
+    across exec; multiprocessing's spawn resets the signal mask and the handlers, not SIG_IGN): a Ctrl-C while a
+    worker imports must not end it with a traceback. Meanwhile SIGINT is blocked here, so that one sent to this
+    process waits, pending, for its own handler. Outside the main thread (no handler can be set there) the block
+    does nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    handler = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, handler)
+        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
 
 
 def _raise_system_exit(_signum: int, _frame: Any) -> None:
@@ -133,7 +168,7 @@ def _worker(index: int, recipe: WorkerRecipe, conn: multiprocessing.connection.C
     parent = os.getppid()
     set_pdeathsig(signal.SIGTERM)
     run_as_batch()  # before its master and sim node start: they inherit it
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # as it was born (_workers_born_ignoring_sigint)
     signal.signal(signal.SIGTERM, _raise_system_exit)  # ends the worker through the finally below
     env, sim = None, None
     parent_gone, closing = False, False  # whether the pipe closed without a "close"; whether "close" came
@@ -229,7 +264,8 @@ class EnvWorkers:
                 parent, child = context.Pipe()
                 process = context.Process(target=_worker, args=(i, recipe, child), name=f"robot_rl-worker{i}",
                                           daemon=True)
-                process.start()
+                with _workers_born_ignoring_sigint():
+                    process.start()
                 child.close()
                 self._conns.append(parent)
                 self._pollers.append(select.poll())
@@ -247,7 +283,7 @@ class EnvWorkers:
     def _failure(self, message: str) -> WorkerError:
         """The error to raise; close() then keeps the workers' logs, which the message names."""
         self.failed = True
-        return WorkerError(message)
+        return WorkerError(message, self.log_dir if self._own_log_dir else None)
 
     def _what_to_check(self, i: int) -> str:
         logs = "its traceback, master's and sim node's logs" if self.backend == "ros" else "its traceback"
