@@ -518,13 +518,20 @@ def test_env_of_another_robot_is_refused_with_the_reason(master, tmp_path):
 
 # -- processes that die, freeze or are stopped during training ------------------------------------
 
-def start_cube_training(master: RosMaster, tmp_path: Path, log: Path, **changes) -> subprocess.Popen:
-    """A long cube training (angle limits out of reach: every episode lasts nsteps)."""
+def start_cube_training(master: Processes, tmp_path: Path, log: Path, *args: str, **changes) -> subprocess.Popen:
+    """A long cube training (angle limits out of reach: every episode lasts nsteps); `args`: launch arguments."""
     config = cube_config(tmp_path / "config.yaml", **{"nepisodes": 400, "nsteps": 50, "max_pitch_angle": 10.0,
                                                        "max_yaw_angle": 10.0, **changes})
     with open(log, "w") as out:
-        return master.start([*CUBE_TRAINING, f"config:={config}", f"results_dir:={tmp_path / 'results'}"],
+        return master.start([*CUBE_TRAINING, f"config:={config}", f"results_dir:={tmp_path / 'results'}", *args],
                             stdout=out, stderr=subprocess.STDOUT)
+
+
+def as_ws_run(tmp_path: Path) -> tuple[str, Processes]:
+    """(master URI, processes) as ./ws run has them: ROS on loopback, a free port, no master yet (roslaunch
+    starts it)."""
+    uri = f"http://127.0.0.1:{free_port()}"
+    return uri, Processes(tmp_path, cwd=REPO, ROS_MASTER_URI=uri, ROS_HOSTNAME="127.0.0.1", ROS_IP="127.0.0.1")
 
 
 def logged_episode(log: Path, episode: int):
@@ -716,15 +723,10 @@ def test_sigkill_of_the_launcher_leaves_no_process_of_the_run(tmp_path):
     """kill -9 of what ./ws run starts (roslaunch_checked.py, which starts the master as ./ws run's does):
     the master, rosout, the sim node and the trainer all end with it (roslaunch's nodes run in sessions
     of their own and used to be reparented to PID 1 and left running)."""
-    uri = f"http://127.0.0.1:{free_port()}"
-    runner = Processes(tmp_path, cwd=REPO, ROS_MASTER_URI=uri, ROS_HOSTNAME="127.0.0.1", ROS_IP="127.0.0.1")
+    uri, runner = as_ws_run(tmp_path)
     log = tmp_path / "run.log"
-    config = cube_config(tmp_path / "config.yaml", nepisodes=400, nsteps=50, max_pitch_angle=10.0,
-                         max_yaw_angle=10.0)
     try:
-        with open(log, "w") as out:
-            launcher = runner.start([*CUBE_TRAINING, f"config:={config}", f"results_dir:={tmp_path / 'results'}"],
-                                    stdout=out, stderr=subprocess.STDOUT)
+        launcher = start_cube_training(runner, tmp_path, log)
         wait_for(logged_episode(log, 2), 120, "episode 2")
         names = {Path(f"/proc/{pid}/comm").read_text().strip() for pid in processes_using(uri)}
         assert {"rosmaster", "rosout"} <= names and len(names) >= 4, names
@@ -800,8 +802,7 @@ def test_ctrl_c_while_the_workers_start_ends_the_run_with_no_traceback(tmp_path)
     """Ctrl-C (SIGINT to the launch's process group, as a terminal sends it) while the envs:=2 workers start
     their masters and sims, the launch having started its own master as ./ws run's does: the master goes
     first and refuses the node's calls. Exit 130, no traceback, no process left."""
-    uri = f"http://127.0.0.1:{free_port()}"
-    runner = Processes(tmp_path, cwd=REPO, ROS_MASTER_URI=uri, ROS_HOSTNAME="127.0.0.1", ROS_IP="127.0.0.1")
+    uri, runner = as_ws_run(tmp_path)
     log = tmp_path / "run.log"
     config = cube_config(tmp_path / "config.yaml", nepisodes=400, nsteps=50)
     folders_before = set(Path(tempfile.gettempdir()).glob("robot_rl-workers-*"))
@@ -897,15 +898,10 @@ def test_every_socket_of_a_training_run_is_on_loopback_but_xmlrpcpps(tmp_path):
     them to loopback when ROS_IP is 127.*), but for the XML-RPC servers of the C++ nodes (rosout,
     robot_state_publisher): xmlrpcpp binds INADDR_ANY whatever ROS_IP says (ros_comm
     utilities/xmlrpcpp/src/XmlRpcSocket.cpp); roscpp still refuses TCPROS peers off this host."""
-    uri = f"http://127.0.0.1:{free_port()}"
-    runner = Processes(tmp_path, cwd=REPO, ROS_MASTER_URI=uri, ROS_HOSTNAME="127.0.0.1", ROS_IP="127.0.0.1")
+    uri, runner = as_ws_run(tmp_path)
     log = tmp_path / "run.log"
-    config = cube_config(tmp_path / "config.yaml", nepisodes=400, nsteps=50, max_pitch_angle=10.0,
-                         max_yaw_angle=10.0)
     try:
-        with open(log, "w") as out:
-            runner.start([*CUBE_TRAINING, f"config:={config}", f"results_dir:={tmp_path / 'results'}",
-                          "robot_state_publisher:=true"], stdout=out, stderr=subprocess.STDOUT)
+        start_cube_training(runner, tmp_path, log, "robot_state_publisher:=true")
         wait_for(logged_episode(log, 2), 120, "episode 2")
         listening = _listening_sockets()
         pids = processes_using(uri)

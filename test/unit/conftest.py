@@ -1,5 +1,6 @@
 """Shared fixtures for the unit tests: the moving cube's sim YAML and URDF."""
 import copy
+import tempfile
 
 import pytest
 import yaml
@@ -20,3 +21,10 @@ def cube_params():
 def cube_urdf():
     """The moving cube's URDF text."""
     return _CUBE_URDF_TEXT
+
+
+@pytest.fixture(autouse=True)
+def temporary_files_in_tmp_path(tmp_path, monkeypatch):
+    """Temporary folders a test leaves on purpose (a failed vector env keeps its workers' logs) go to
+    pytest's tmp_path, not /tmp."""
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
