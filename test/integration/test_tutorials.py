@@ -15,33 +15,28 @@ VENV_COMMAND = re.compile(r"([^\s`]+) -m venv ([^&`\n]*)")
 GYM_ERA = "/tmp/gym-era"
 GYM_ERA_PYTHON = f"{GYM_ERA}/bin/python"
 
-HOPPER_ENTRY_POINT = '''#!/usr/bin/env python
-"""Stand-in for the hopper tutorial's start_training_v2.py: its node, its params, its output folder."""
+
+def entry_point(script: str, node: str, package: str, namespace: str) -> str:
+    """Stand-in for a tutorial's training script: its node, its params, its output folder found as theirs."""
+    return f'''#!/usr/bin/env python
+"""Stand-in for the tutorial's {script}: its node, its params, its output folder."""
 import os
 import rospkg
 import rospy
 
-rospy.init_node('monoped_gym', anonymous=True, log_level=rospy.WARN)
-outdir = rospkg.RosPack().get_path('my_hopper_training') + '/training_results'
+rospy.init_node('{node}', anonymous=True, log_level=rospy.WARN)
+outdir = rospkg.RosPack().get_path('{package}') + '/training_results'
 if not os.path.exists(outdir):
     os.makedirs(outdir)
 with open(os.path.join(outdir, 'params.txt'), 'w') as out:
-    out.write('alpha %s nepisodes %s\\n' % (rospy.get_param('/alpha'), rospy.get_param('/nepisodes')))
+    out.write('alpha %s nepisodes %s\\n' % (rospy.get_param('{namespace}alpha'),
+                                           rospy.get_param('{namespace}nepisodes')))
 '''
-CUBE_ENTRY_POINT = '''#!/usr/bin/env python
-"""Stand-in for the cube tutorial's oldway_start_training.py: its node, its params, its output folder."""
-import os
-import rospkg
-import rospy
 
-rospy.init_node('movingcube_gym', anonymous=True, log_level=rospy.WARN)
-outdir = rospkg.RosPack().get_path('moving_cube_training_pkg') + '/training_results'
-if not os.path.exists(outdir):
-    os.makedirs(outdir)
-with open(os.path.join(outdir, 'params.txt'), 'w') as out:
-    out.write('alpha %s nepisodes %s\\n' % (rospy.get_param('/moving_cube/alpha'),
-                                           rospy.get_param('/moving_cube/nepisodes')))
-'''
+
+HOPPER_ENTRY_POINT = entry_point("start_training_v2.py", "monoped_gym", "my_hopper_training", "/")
+CUBE_ENTRY_POINT = entry_point("oldway_start_training.py", "movingcube_gym", "moving_cube_training_pkg",
+                               "/moving_cube/")
 CUBE_SYSTEMS_TEST = '''"""Stand-in for the cube tutorial's cube_rl_utils.py as a script (the real one needs the sim)."""
 import rospy
 
