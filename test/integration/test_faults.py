@@ -776,21 +776,27 @@ def start_vector_training(master: RosMaster, tmp_path: Path, log: Path) -> subpr
                             stdout=out, stderr=subprocess.STDOUT)
 
 
-def test_a_killed_worker_sim_stops_training_with_one_line_naming_its_log(master, tmp_path):
-    """envs:=2 and a worker's sim node killed: one FATAL line naming the worker and the sim's log, with no
-    traceback and no hint to start a launch file (a worker starts its own sim); the run is saved."""
+@pytest.mark.parametrize("fault", [signal.SIGKILL, signal.SIGSTOP], ids=["killed", "frozen"])
+def test_a_killed_or_frozen_worker_sim_stops_training_with_one_line_naming_its_log(master, tmp_path, fault):
+    """envs:=2 and a worker's sim node killed, or frozen (SIGSTOP: the worker's step call times out): one
+    FATAL line naming the worker and the sim's log, with no traceback and no hint to start a launch file
+    (a worker starts its own sim); the run is saved."""
     log = tmp_path / "run.log"
     launch = start_vector_training(master, tmp_path, log)
     wait_for(logged_episode(log, 12), 180, "episode 12")
     trainer = node_pid(master, "/movingcube_gym")
     sims = wait_for(lambda: worker_sims(trainer), 10, "the workers' sim nodes")
-    os.kill(sims[0], signal.SIGKILL)
+    os.kill(sims[0], fault)
     assert launch.wait(120) == 1, log.read_text()[-3000:]
     line = one_line(log.read_text(), "training stopped: worker")
-    assert "[FATAL]" in line and "is gone or frozen: its log is" in line and "sim_node.log" in line, line
-    assert "roslaunch pybullet_sim" not in line and "continue with resume:=true" in line, line
-    sim_log = Path(re.search(r"its log is (\S+sim_node\.log)", line).group(1))
-    assert sim_log.is_file(), "the log the line names is kept"
+    assert "[FATAL]" in line and "roslaunch pybullet_sim" not in line and "continue with resume:=true" in line, line
+    if fault == signal.SIGKILL:
+        assert "is gone or frozen: its log is" in line, line
+        sim_log = Path(re.search(r"its log is (\S+sim_node\.log)", line).group(1))
+    else:
+        assert "did not answer within 10.0 s: the sim node is frozen or overloaded" in line, line
+        sim_log = Path(re.search(r"logs \(if any\) are kept in (\S+)\.", line).group(1)) / "sim_node.log"
+    assert sim_log.is_file(), f"the log the line names is kept: {sim_log}"
     shutil.rmtree(sim_log.parent.parent)  # the failed workers' folder, kept for the user
     wait_for(lambda: not any(Path(f"/proc/{pid}").exists() for pid in [trainer, *sims]), 30,
              "the end of the trainer and its workers' sim nodes")
