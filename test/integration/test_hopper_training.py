@@ -72,7 +72,8 @@ def test_three_episodes_over_ros_then_evaluate(ros_master, tmp_path):
     with open(run / "episodes.csv", newline="") as f:
         rows = list(csv.reader(f))
     assert rows[0] == ["episode", "steps", "return", "epsilon", "sim_time", "wall_time", "time_upright_s",
-                       "upright_whole_horizon", "x_distance"]
+                       "upright_whole_horizon", "fell", "x_distance", "hops", "apex_height", "forward_speed",
+                       "lateral_drift"]
     episodes = rows[1:]
     assert [int(row[0]) for row in episodes] == [1, 2, 3], log[-4000:]
     steps = [int(row[1]) for row in episodes]
@@ -116,7 +117,10 @@ def test_three_episodes_over_ros_then_evaluate(ros_master, tmp_path):
     assert (report["task"], report["episodes"], report["horizon_s"]) == ("Monoped-v0", 2, _approx(0.2))
     for policy in ("greedy", "random"):
         result = report[policy]
-        assert set(result) == {"mean_return", "mean_time_upright_s", "upright_whole_horizon_rate", "mean_x_distance"}
+        assert set(result) == {"mean_return", "mean_time_upright_s", "upright_whole_horizon_rate", "fell_rate",
+                               "mean_x_distance", "mean_hops", "mean_apex_height", "mean_forward_speed",
+                               "mean_lateral_drift"}
+        assert result["fell_rate"] == _approx(1.0 - result["upright_whole_horizon_rate"])
         assert all(isinstance(v, float) and math.isfinite(v) for v in result.values())
         assert 0.0 < result["mean_time_upright_s"] <= 0.2 + 1e-9
         assert result["upright_whole_horizon_rate"] in (0.0, 0.5, 1.0)

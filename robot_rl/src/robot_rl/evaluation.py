@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import gymnasium
 import numpy as np
 import yaml
 
@@ -97,6 +98,13 @@ def run_episodes(env: Any, policy: Callable[[np.ndarray], int], episodes: int, t
     return {**aggregate({"return": returns}), **aggregate(metrics)}
 
 
+def random_actions(space: Any, rng: np.random.Generator) -> Callable[[np.ndarray], Any]:
+    """Uniformly random actions of a Discrete or Box action space, drawn from `rng`."""
+    if isinstance(space, gymnasium.spaces.Discrete):
+        return lambda _: int(rng.integers(int(space.n)))
+    return lambda _: rng.uniform(space.low, space.high).astype(space.dtype)
+
+
 def evaluate(run: TrainedRun, episodes: int, horizon_s: float, backend: str, seed: int,
              video: VideoRequest | None = None) -> dict[str, Any]:
     """Greedy, then seeded uniformly random, `episodes` each, from a seeded first reset; `video` records
@@ -107,12 +115,11 @@ def evaluate(run: TrainedRun, episodes: int, horizon_s: float, backend: str, see
     env = make_env(run.task, params=run.params, backend=backend, seed=seed, max_episode_steps=steps, **rendering)
     recorder = None if video is None else VideoRecorder(env, video.path, video.episodes)
     rng = np.random.default_rng(seed)
-    n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
     try:
         policy = run.policy(env, seed)
         env.reset(seed=seed)
         greedy = run_episodes(recorder or env, policy, episodes, run.task, run.params.running_step)
-        random_policy = run_episodes(env, lambda obs: int(rng.integers(n_actions)), episodes, run.task,
+        random_policy = run_episodes(env, random_actions(env.action_space, rng), episodes, run.task,
                                      run.params.running_step)
     finally:
         (recorder or env).close()
