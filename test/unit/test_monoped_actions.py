@@ -144,3 +144,11 @@ def test_gymnasiums_env_checker_passes_on_every_mode(task, mode, observation):
         check_env(env.unwrapped, skip_render_check=True)
     finally:
         env.close()
+
+
+def test_params_of_a_run_from_before_the_action_modes_keep_the_tutorials_rule():
+    values = STAY_UP.default_params().to_mapping()
+    for key in ("action_mode", "start_pose", "target_range", "observation", "initial_tilt"):
+        del values[key]
+    old = STAY_UP.params_type.from_mapping(values, "params.yaml")
+    assert old.action_mode == "tutorial" and (old.initial_tilt.low, old.initial_tilt.high) == (0.0, 0.0)
