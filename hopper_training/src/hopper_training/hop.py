@@ -44,7 +44,7 @@ HOP = TaskSpec(
     robot=MONOPED, params_type=HopParams, params_namespace="/", state_key=monoped_state_key,
     results_name="monoped_hop", reward_topic="/monoped/reward", episode_reward_topic="/monoped/episode_reward",
     publish_cumulated_reward=True, max_episode_steps=500, metrics=monoped_metrics, headline_metric="x_distance",
-    eval_horizon_s=10.0)
+    eval_horizon_s=10.0, curve_metrics=("forward_speed", "hops"))
 
 
 class MonopedHopEnv(MonopedEnv):
