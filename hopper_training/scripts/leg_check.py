@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import math
+from typing import Any
 
 import numpy as np
 from tf.transformations import quaternion_matrix
@@ -109,7 +110,7 @@ def thrust() -> dict:
 
 
 def main() -> None:
-    report = {}
+    report: dict[str, Any] = {}
     for name, changes, action in (("hold", {}, lambda _: HOLD),
                                   ("tutorial_still", {"action_mode": "tutorial"}, lambda _: 4)):
         env = env_of(**changes)
