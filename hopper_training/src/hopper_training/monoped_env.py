@@ -149,6 +149,7 @@ class MonopedEnv(RobotEnv[MonopedParams]):
 
     @functools.cached_property
     def kinematics(self) -> LegKinematics:
+        """The leg's kinematics, from the URDF: where the foot is for the start pose."""
         return leg_kinematics(self.task.robot.urdf_path)
 
     @property
