@@ -45,6 +45,7 @@ from .sensors import SENSOR_KINDS
 from .starts import MAX_REMEMBERED_STARTS, Change, StartKey, StartMemory
 from .transforms import cross, normalized, quaternion_multiply, rotate
 from .urdf import UrdfError, UrdfJoint, parse_urdf_joints
+from .validation import frame_state_problem
 
 __all__ = ["DEFAULT_GRAVITY", "MAX_REMEMBERED_STARTS", "SolverSettings", "UrdfError", "World"]
 
@@ -366,10 +367,10 @@ class World(Measurements):
         """Move the robot's base frame to a pose with a twist (world frame); the joints keep their state.
 
         As Gazebo does, the orientation is normalised and an all-zero quaternion means no rotation.
-        ValueError if any number is not finite."""
-        numbers = (*state.position, *state.orientation, *state.linear_velocity, *state.angular_velocity)
-        if len(numbers) != 13 or not all(math.isfinite(v) for v in numbers):
-            raise ValueError(f"the pose and twist must be finite numbers, got {state!r}")
+        ValueError naming the field if a number is not finite or beyond the sim's bounds (validation)."""
+        problem = frame_state_problem(state.position, state.orientation, state.linear_velocity, state.angular_velocity)
+        if problem:
+            raise ValueError(problem)
         orientation = normalized(state.orientation)
         inertial_position, inertial_orientation = p.getDynamicsInfo(self._body, -1, physicsClientId=self._cid)[3:5]
         com = tuple(a + b for a, b in zip(state.position, rotate(orientation, inertial_position), strict=True))
