@@ -222,6 +222,16 @@ def service_provider(name: str, timeout: float) -> str | None:
     return uri if code == 1 else None
 
 
+def _accepts_connections(rosrpc_uri: str, timeout: float) -> bool:
+    """Whether something listens at a service's rosrpc:// address (a killed node's port refuses)."""
+    try:
+        host, port = rospy.core.parse_rosrpc_uri(rosrpc_uri)
+        socket.create_connection((host, port), timeout).close()
+    except (OSError, rospy.ROSException):
+        return False
+    return True
+
+
 class SimConnection:
     """pause / unpause / reset_world / reset_simulation / step / reset / is_paused on the sim node, every
     call bounded by `timeout` seconds of wall time."""
@@ -258,12 +268,14 @@ class SimConnection:
 
     def _what_became_of_the_sim(self, error: Exception) -> str:
         """After a call failed with `error`: whether the sim node is gone or was restarted, as the master tells."""
+        timeout = min(self.timeout, 5.0)
         try:
-            uri = service_provider(STEP_PACKED_SERVICE, min(self.timeout, 5.0))
+            uri = service_provider(STEP_PACKED_SERVICE, timeout)
         except (OSError, xmlrpc.client.Error):  # the master is gone too, or frozen: it cannot tell
             uri = self._sim_uri
-        if uri is None:
-            return (f"the sim node is gone (no node serves {STEP_PACKED_SERVICE} any more: was it killed? see its "
+        if uri is None or (uri == self._sim_uri and not _accepts_connections(uri, timeout)):
+            # a killed node stays registered with the master until another takes its name
+            return (f"the sim node is gone (nothing serves {STEP_PACKED_SERVICE} any more: was it killed? see its "
                     f"log); {self.hint}")
         if self._sim_uri is not None and uri != self._sim_uri:
             return (f"the sim node was restarted (it serves {STEP_PACKED_SERVICE} at {uri} now, at {self._sim_uri} "
