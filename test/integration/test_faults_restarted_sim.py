@@ -13,6 +13,7 @@ import subprocess
 import time
 import xmlrpc.client
 from pathlib import Path
+from typing import Any
 
 import pytest
 import rosgraph
@@ -64,7 +65,8 @@ def training_launch(tmp_path: Path) -> Path:
   <include file="$(find robot_rl)/launch/train.launch">
     <arg name="sim_launch" value="{no_sim}"/><arg name="node_name" value="movingcube_gym"/>
     <arg name="task" value="one_disk_walk"/><arg name="config" value="{config}"/>
-    <arg name="nepisodes" value="$(arg nepisodes)"/><arg name="resume" value="$(arg resume)"/><arg name="seed" value="0"/>
+    <arg name="nepisodes" value="$(arg nepisodes)"/><arg name="resume" value="$(arg resume)"/>
+    <arg name="seed" value="0"/>
     <arg name="results_dir" value="{tmp_path / 'results'}"/><arg name="quiet" value="false"/>
     <arg name="gui" value="false"/><arg name="robot_state_publisher" value="false"/>
     <arg name="rviz" value="false"/><arg name="video" value="false"/>
@@ -94,7 +96,8 @@ def start_sim(master: RosMaster, log: Path, previous: str | None = None) -> subp
 
 def node_pid(master: RosMaster, name: str) -> int:
     """A node's pid, from its own XML-RPC server (the master knows where it is)."""
-    return int(xmlrpc.client.ServerProxy(master.params.lookupNode(name)).getPid("/test")[2])
+    answer: Any = xmlrpc.client.ServerProxy(master.params.lookupNode(name)).getPid("/test")  # (code, status, pid)
+    return int(answer[2])
 
 
 def episodes(results: Path) -> list[int]:

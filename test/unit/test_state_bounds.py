@@ -31,7 +31,8 @@ def state(position=REST[0], orientation=REST[1], linear=REST[2], angular=REST[3]
 
 
 @pytest.mark.parametrize("wanted, expected", [
-    (state(position=(1e30, 0.0, 0.5)), f"pose.position.x must be a finite number within +-{MAX_POSITION:g} m, got 1e+30"),
+    (state(position=(1e30, 0.0, 0.5)),
+     f"pose.position.x must be a finite number within +-{MAX_POSITION:g} m, got 1e+30"),
     (state(position=(0.0, 0.0, -1.1e6)), "pose.position.z must be a finite number within +-1e+06 m"),
     (state(linear=(0.0, 1e30, 0.0)), f"twist.linear.y must be a finite number within +-{MAX_SPEED:g} m/s, got 1e+30"),
     (state(angular=(0.0, 0.0, -1001.0)), "twist.angular.z must be a finite number within +-1000 rad/s, got -1001.0"),
@@ -43,7 +44,8 @@ def test_a_state_beyond_the_bounds_names_the_field_and_the_bound(wanted, expecte
 
 
 def test_a_state_at_the_bounds_and_any_finite_orientation_are_taken():
-    at_bounds = state((MAX_POSITION, -MAX_POSITION, 0.0), (1e300, 1e-300, 0.0, 0.0), (MAX_SPEED,) * 3, (-MAX_SPEED,) * 3)
+    at_bounds = state((MAX_POSITION, -MAX_POSITION, 0.0), (1e300, 1e-300, 0.0, 0.0), (MAX_SPEED,) * 3,
+                      (-MAX_SPEED,) * 3)
     assert frame_state_problem(*vars(at_bounds).values()) == ""
 
 
@@ -82,8 +84,10 @@ def physics(time_step=0.001, gravity=DEFAULT_GRAVITY) -> physics_properties.Phys
 
 
 @pytest.mark.parametrize("request_, expected", [
-    (physics(gravity=(0.0, 0.0, -1e30)), f"gravity.z must be a finite number within +-{MAX_GRAVITY:g} m/s^2, got -1e+30"),
-    (physics(time_step=1e30), f"time_step must be a finite number of seconds from 1e-06 to {MAX_TIME_STEP:g}, got 1e+30"),
+    (physics(gravity=(0.0, 0.0, -1e30)),
+     f"gravity.z must be a finite number within +-{MAX_GRAVITY:g} m/s^2, got -1e+30"),
+    (physics(time_step=1e30),
+     f"time_step must be a finite number of seconds from 1e-06 to {MAX_TIME_STEP:g}, got 1e+30"),
     (physics(time_step=2.0), "time_step must be a finite number of seconds from 1e-06 to 1, got 2.0"),
 ], ids=["gravity", "huge_time_step", "time_step_above_the_bound"])
 def test_physics_beyond_the_bounds_is_refused_naming_the_field_and_the_bound(request_, expected):

@@ -218,8 +218,8 @@ def service_provider(name: str, timeout: float) -> str | None:
     """The URI of the node serving `name` now (None: no node does), from the master, within `timeout` s;
     OSError (or an xmlrpc.client.Error) if the master does not answer."""
     master = xmlrpc.client.ServerProxy(rosgraph.get_master_uri(), transport=_TimedTransport(timeout))
-    code, _, uri = master.lookupService(rospy.get_name(), name)
-    return uri if code == 1 else None
+    answer: Any = master.lookupService(rospy.get_name(), name)  # (code, status, uri); code 1: found
+    return str(answer[2]) if answer[0] == 1 else None
 
 
 def _accepts_connections(rosrpc_uri: str, timeout: float) -> bool:
