@@ -46,6 +46,8 @@ PHYSICS_SERVICE = "/gazebo/get_physics_properties"
 GAZEBO_SERVICES = ("/gazebo/pause_physics", "/gazebo/unpause_physics", "/gazebo/reset_world",
                    "/gazebo/reset_simulation")
 HINT = "is the sim node running? (e.g. roslaunch pybullet_sim cube_sim.launch)"
+ANSWERED_WITH_AN_ERROR = "responded with an error"  # rospy's ServiceException text when the handler raised
+LOST_SIM_WAIT = 2.0  # s a failed call looks for what became of the sim node (gone, or restarted)
 
 Reading = TypeVar("Reading")
 
@@ -267,21 +269,29 @@ class SimConnection:
         return SimConnectionError(f"service {name} failed: {self._what_became_of_the_sim(error)}")
 
     def _what_became_of_the_sim(self, error: Exception) -> str:
-        """After a call failed with `error`: whether the sim node is gone or was restarted, as the master tells."""
-        timeout = min(self.timeout, 5.0)
-        try:
-            uri = service_provider(STEP_PACKED_SERVICE, timeout)
-        except (OSError, xmlrpc.client.Error):  # the master is gone too, or frozen: it cannot tell
-            uri = self._sim_uri
-        if uri is None or (uri == self._sim_uri and not _accepts_connections(uri, timeout)):
-            # a killed node stays registered with the master until another takes its name
-            return (f"the sim node is gone (nothing serves {STEP_PACKED_SERVICE} any more: was it killed? see its "
-                    f"log); {self.hint}")
-        if self._sim_uri is not None and uri != self._sim_uri:
-            return (f"the sim node was restarted (it serves {STEP_PACKED_SERVICE} at {uri} now, at {self._sim_uri} "
-                    f"before): a restarted sim starts over (sim time 0, the robot at its spawn pose, its params read "
-                    f"again), so this connection cannot go on with it; a new env connects to the new sim")
-        return f"{error}; {self.hint}"
+        """After a call failed with `error`: whether the sim node is gone or was restarted, as the master tells.
+        A dying node may still accept connections for a moment after its sockets broke: looked at again for up
+        to LOST_SIM_WAIT seconds before the error is given as it is."""
+        if ANSWERED_WITH_AN_ERROR in str(error):  # the sim is there: it refused the request
+            return f"{error}; {self.hint}"
+        deadline = time.monotonic() + min(self.timeout, LOST_SIM_WAIT)
+        while True:
+            try:
+                uri = service_provider(STEP_PACKED_SERVICE, min(self.timeout, LOST_SIM_WAIT))
+            except (OSError, xmlrpc.client.Error):  # the master is gone too, or frozen: it cannot tell
+                uri = self._sim_uri
+            if uri is None or (uri == self._sim_uri and not _accepts_connections(uri, LOST_SIM_WAIT)):
+                # a killed node stays registered with the master until another takes its name
+                return (f"the sim node is gone (nothing serves {STEP_PACKED_SERVICE} any more: was it killed? see "
+                        f"its log); {self.hint}")
+            if self._sim_uri is not None and uri != self._sim_uri:
+                return (f"the sim node was restarted (it serves {STEP_PACKED_SERVICE} at {uri} now, at "
+                        f"{self._sim_uri} before): a restarted sim starts over (sim time 0, the robot at its spawn "
+                        f"pose, its params read again), so this connection cannot go on with it; a new env connects "
+                        f"to the new sim")
+            if time.monotonic() > deadline:
+                return f"{error}; {self.hint}"
+            time.sleep(0.05)
 
     def _call(self, name: str, proxy: rospy.ServiceProxy, request: Any = None) -> Any:
         self._watchdog.start(proxy)
