@@ -128,3 +128,23 @@ def test_the_direct_backend_refuses_to_pass_on_a_state_that_blew_up():
     finally:
         backend.close()
 
+
+
+def test_the_ros_backend_refuses_an_answer_with_a_non_finite_number():
+    """The lockstep answer's numbers (pybullet_sim/PackedReadings) are summed once per step; a NaN among them is
+    named. No sim is needed: the answer is made here as the sim node packs it."""
+    from pybullet_sim.client import SimConnectionError
+    from pybullet_sim.msg import PackedReadings
+    from pybullet_sim.sensors import pack_readings
+    from robot_rl.backends import RosBackend
+
+    backend = RosBackend.__new__(RosBackend)  # the answer's reader alone, without the connection
+    backend._sensor_names, backend._sensor_types = ["odom"], ["p3d"]
+    for x, finite in ((1e300, True), (math.inf, False), (math.nan, False)):
+        values, names = pack_readings(readings(x).joints, [readings(x).odometry("odom")])
+        answer = PackedReadings(values=values, names=names)
+        if finite:
+            assert backend._readings(answer).odometry("odom").position[0] == x
+        else:
+            with pytest.raises(SimConnectionError, match=rf"at sim time 1.500000 s: odom.position\[0\] = {x!r};"):
+                backend._readings(answer)
