@@ -5,7 +5,9 @@ import math
 
 import pybullet as p
 import pytest
+import yaml
 
+from hopper_training.monoped_env import MONOPED
 from moving_cube_training.one_disk_walk import MOVING_CUBE
 from pybullet_sim import physics_properties
 from pybullet_sim.config import parse_robot_config
@@ -77,6 +79,28 @@ def test_a_quaternion_of_1e200_leaves_the_world_finite(cube):
     cube.set_model_state(state(orientation=(1e200, 1e200, 0.0, 0.0)))
     cube.step(10)
     assert all(math.isfinite(v) for v in (*cube.model_state().position, *cube.model_state().orientation))
+
+
+@pytest.mark.parametrize("robot", [MOVING_CUBE, MONOPED], ids=["cube", "hopper"])
+@pytest.mark.parametrize("time_step", [0.001, MAX_TIME_STEP])
+def test_a_world_at_every_bound_at_once_stays_finite(robot, time_step):
+    """Gravity, position, speeds at their bounds and commands of 1e300 on every controller, at the shortest usual
+    and the longest time step: the bounds keep the physics finite (beyond them a quaternion of 1e200 did not)."""
+    world = World(robot.urdf_path.read_text(), parse_robot_config(yaml.safe_load(robot.sim_config_path.read_text())),
+                  time_step=time_step)
+    try:
+        world.set_gravity((MAX_GRAVITY, -MAX_GRAVITY, -MAX_GRAVITY))
+        world.set_model_state(state((MAX_POSITION, MAX_POSITION, 0.5), (0.3, 0.1, 0.2, 0.9), (MAX_SPEED, -MAX_SPEED,
+                                    MAX_SPEED), (MAX_SPEED, MAX_SPEED, -MAX_SPEED)))
+        for controller in world.controller_names:
+            world.set_command(controller, 1e300)
+        world.step(200)
+        model, joints = world.model_state(), world.read_joint_states()
+        numbers = (*model.position, *model.orientation, *model.linear_velocity, *model.angular_velocity,
+                   *joints.position, *joints.velocity, *joints.effort)
+        assert all(math.isfinite(v) for v in numbers), (model, joints)
+    finally:
+        world.close()
 
 
 def physics(time_step=0.001, gravity=DEFAULT_GRAVITY) -> physics_properties.PhysicsProperties:
