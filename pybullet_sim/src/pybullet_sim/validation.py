@@ -6,7 +6,7 @@ both read their parameters through `param`, so a mistake reads the same wherever
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, TypeVar
 
 T = TypeVar("T")
@@ -19,11 +19,11 @@ class ConfigError(ValueError):
 
 
 def param(params: Mapping[str, Any], key: str, kind: type[T], prefix: str, default: Any = REQUIRED,
-          minimum: float | None = None, exclusive_minimum: bool = False) -> T:
+          minimum: float | None = None, exclusive_minimum: bool = False, choices: Sequence[Any] = ()) -> T:
     """params[key] as `kind` (float, int, bool, str or dict; an int is taken as a float), else `default`;
     a ConfigError naming the parameter (`prefix` + key, e.g. "~/controllers/" or "~") when it is missing
-    without a default, of another type, not finite, an empty string, or below `minimum` (at `minimum`
-    too when `exclusive_minimum`)."""
+    without a default, of another type, not finite, an empty string, below `minimum` (at `minimum`
+    too when `exclusive_minimum`), or not one of `choices` (when given)."""
     name = prefix + key
     if key not in params:
         if default is REQUIRED:
@@ -38,4 +38,6 @@ def param(params: Mapping[str, Any], key: str, kind: type[T], prefix: str, defau
         raise ConfigError(f"parameter {name} must be {_WHAT[kind]}, got {value!r}")
     if minimum is not None and (value < minimum or (exclusive_minimum and value == minimum)):  # type: ignore[operator]
         raise ConfigError(f"parameter {name} must be {'>' if exclusive_minimum else '>='} {minimum}, got {value!r}")
+    if choices and value not in choices:
+        raise ConfigError(f"parameter {name} must be one of {', '.join(map(str, choices))}, got {value!r}")
     return value
