@@ -138,6 +138,7 @@ def test_evaluate_prints_one_json_line(three_episodes, tmp_path):
         assert result.returncode == 0, result.stderr
     report = json.loads(outputs[0].stdout.strip().splitlines()[-1])
     assert (report["task"], report["episodes"], report["horizon_s"]) == ("MovingCubeOneDiskWalk-v0", 2, 60.0)
+    assert report["initial_tilt"] is None  # the cube's task has none
     for policy in ("greedy", "random"):
         assert set(report[policy]) == {"mean_return", "mean_y_distance", "success_rate"}
         assert all(isinstance(v, float) for v in report[policy].values())

@@ -72,7 +72,8 @@ def test_three_episodes_over_ros_then_evaluate(ros_master, tmp_path):
     with open(run / "episodes.csv", newline="") as f:
         rows = list(csv.reader(f))
     assert rows[0] == ["episode", "steps", "return", "epsilon", "sim_time", "wall_time", "time_upright_s",
-                       "upright_whole_horizon", "x_distance"]
+                       "upright_whole_horizon", "fell", "x_distance", "hops", "apex_height", "forward_speed",
+                       "lateral_drift"]
     episodes = rows[1:]
     assert [int(row[0]) for row in episodes] == [1, 2, 3], log[-4000:]
     steps = [int(row[1]) for row in episodes]
@@ -114,9 +115,13 @@ def test_three_episodes_over_ros_then_evaluate(ros_master, tmp_path):
     evaluate_time = time.monotonic() - started
     report = json.loads(evaluation.stdout.strip().splitlines()[-1])
     assert (report["task"], report["episodes"], report["horizon_s"]) == ("Monoped-v0", 2, _approx(0.2))
+    assert report["initial_tilt"] == [0.02, 0.05]  # evaluation episodes start leaning by default
     for policy in ("greedy", "random"):
         result = report[policy]
-        assert set(result) == {"mean_return", "mean_time_upright_s", "upright_whole_horizon_rate", "mean_x_distance"}
+        assert set(result) == {"mean_return", "mean_time_upright_s", "upright_whole_horizon_rate", "fell_rate",
+                               "mean_x_distance", "mean_hops", "mean_apex_height", "mean_forward_speed",
+                               "mean_lateral_drift"}
+        assert result["fell_rate"] == _approx(1.0 - result["upright_whole_horizon_rate"])
         assert all(isinstance(v, float) and math.isfinite(v) for v in result.values())
         assert 0.0 < result["mean_time_upright_s"] <= 0.2 + 1e-9
         assert result["upright_whole_horizon_rate"] in (0.0, 0.5, 1.0)
@@ -125,3 +130,11 @@ def test_three_episodes_over_ros_then_evaluate(ros_master, tmp_path):
         # each step earns at most alive_reward; a fall gives done_reward
         assert result["mean_return"] <= 100.0 * result["mean_time_upright_s"] / 0.02
     print(f"training {training_time:.1f} s, evaluate {evaluate_time:.1f} s")
+
+    evaluate = ["rosrun", "hopper_training", "evaluate.py", "--qtable", str(run), "--episodes", "1", "--horizon-s",
+                "0.1", "--initial-tilt"]
+    upright, bad = (ros_master.run([*evaluate, *tilt], timeout=EVALUATE_TIMEOUT) for tilt in (["0", "0"],
+                                                                                               ["0.05", "0.02"]))
+    assert upright.returncode == 0, upright.stderr[-2000:]
+    assert json.loads(upright.stdout.strip().splitlines()[-1])["initial_tilt"] == [0.0, 0.0]
+    assert bad.returncode == 2 and "'initial_tilt/low' (0.05) must not be above 'initial_tilt/high'" in bad.stderr

@@ -1,5 +1,5 @@
 """A Backend without physics for the task tests: it hands out the readings a test scripts and records
-every reset, command and step the env makes."""
+every reset, placement, command and step the env makes."""
 from __future__ import annotations
 
 import numpy as np
@@ -12,8 +12,10 @@ class FakeBackend(Backend):
 
     time_step = 0.001
 
-    def __init__(self, at_reset: Readings, script=(), after: Readings | None = None):
+    def __init__(self, at_reset: Readings, script=(), after: Readings | None = None, config=None):
         self.at_reset = at_reset
+        self.config = config                          # the RobotConfig a task's placement reads (spawn pose)
+        self.placements: list[tuple] = []             # (base FrameState, joint positions) of each place call
         self.script = list(script)
         self.after = after or at_reset
         self.commands: list[tuple[str, float]] = []   # (controller, value) in call order
@@ -24,6 +26,9 @@ class FakeBackend(Backend):
     def reset(self, restart_time: bool = False) -> Readings:
         self.resets.append(restart_time)
         return self.at_reset
+
+    def place(self, base, joints) -> None:
+        self.placements.append((base, dict(joints)))
 
     def set_command(self, controller: str, value: float) -> None:
         self.commands.append((controller, value))

@@ -48,7 +48,9 @@ def readings(position=(0.0, 0.0, 1.0), rpy=(0.0, 0.0, 0.0), joints=(0.0, 0.0, 0.
 
 
 def params(task=STAY_UP, **overrides):
-    return dataclasses.replace(task.default_params(), **overrides)
+    """The task's YAML params in the tutorial's action mode (the tutorial's rule: test_monoped_actions.py
+    covers the others), with `overrides`."""
+    return dataclasses.replace(task.default_params(), **{"action_mode": "tutorial", **overrides})
 
 
 def env_on(r, env_class=MonopedEnv, **overrides):
@@ -417,7 +419,7 @@ def test_direct_observations_are_float32_in_the_space_in_the_tutorial_order():
 
 def test_same_seed_same_episode_on_the_direct_backend():
     def episode():
-        env = gymnasium.make(STAY_UP.env_id, backend="direct", seed=4).unwrapped
+        env = gymnasium.make(STAY_UP.env_id, backend="direct", seed=4, params=params()).unwrapped
         try:
             env.reset(seed=4)
             steps = [env.step(a) for a in [2, 2, 4, 5, 0, 1] * 10]
@@ -445,7 +447,7 @@ def test_contact_reading_is_empty_right_after_a_reset(restart_time):
 
 
 def test_a_seeded_reset_after_an_episode_gives_the_first_observation_of_a_fresh_env():
-    env = gymnasium.make(STAY_UP.env_id, backend="direct").unwrapped
+    env = gymnasium.make(STAY_UP.env_id, backend="direct", params=params()).unwrapped
     try:
         fresh, _ = env.reset(seed=0)
         assert tutorial_key(fresh) == "5_5_5_5_1_5_5_10"

@@ -178,6 +178,31 @@ def test_non_finite_model_state_is_refused_and_changes_nothing(cube, state):
     assert cube.model_state() == before
 
 
+def test_set_joint_positions_puts_joints_at_rest_and_keeps_the_base_and_commands(worlds):
+    """Gazebo's set_model_configuration: the monoped's crouched start."""
+    hopper = worlds(HOPPER_URDF, HOPPER_PARAMS)
+    hopper.set_command(HFE, 0.3)
+    hopper.step(100)
+    base = hopper.model_state().position
+    hopper.set_joint_positions({"kfe_joint": -0.9, "hfe_joint": 0.476})
+    joints = hopper.read_joint_states()
+    positions = dict(zip(joints.name, joints.position))
+    assert (positions["haa_joint"], positions["hfe_joint"], positions["kfe_joint"]) == \
+        pytest.approx((0.0, 0.476, -0.9), abs=1e-9)
+    assert dict(zip(joints.name, joints.velocity))["hfe_joint"] == 0.0
+    assert hopper.model_state().position == pytest.approx(base) and hopper.command(HFE) == 0.3
+
+
+@pytest.mark.parametrize("positions, message", [({"kfe_joint": -0.5, "foot": 0.0}, "no movable joint 'foot'"),
+                                                ({"kfe_joint": -0.5, "hfe_joint": math.nan}, "finite")])
+def test_bad_joint_positions_are_refused_and_change_nothing(worlds, positions, message):
+    hopper = worlds(HOPPER_URDF, HOPPER_PARAMS)
+    before = hopper.read_joint_states().position
+    with pytest.raises(ValueError, match=message):
+        hopper.set_joint_positions(positions)
+    assert hopper.read_joint_states().position == before
+
+
 # -- controllers stop and start -------------------------------------------------------------------
 def test_a_stopped_wheel_controller_lets_the_wheel_coast(cube):
     cube.set_command(WHEEL, 50.0)

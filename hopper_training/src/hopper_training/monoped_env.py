@@ -1,17 +1,38 @@
 """Monoped-v0: the hopper learns to stay up (seed 001's MonopedEnv, on the gymnasium 1.x API).
 
-Actions: Discrete(6)
-    0/1  haa target +/- joint_increment_value (rad)
-    2/3  hfe target +/- joint_increment_value
-    4/5  kfe target +/- joint_increment_value
-    From the current joint positions, clamped to the URDF limits; the other two joints are commanded
-    to stay where they are.
-Observation: Box(10,), float32 (the tutorial's 8 in its order, then the tilt rates)
+Actions: chosen by the params' action_mode
+    accumulate  Discrete(7) (config/stay_up.yaml, config/hop.yaml)
+                0/1  haa target +/- joint_increment_value (rad)
+                2/3  hfe target +/- joint_increment_value
+                4/5  kfe target +/- joint_increment_value
+                6    hold: the three targets as they are
+                Each step adds to the last *commanded* targets (start_pose at reset), clamped to the URDF
+                limits, and publishes all three: the PD controllers hold them, so the leg stays stiff and a
+                bent knee carries the robot (as The Construct's later jumping code did).
+    tutorial    Discrete(6): actions 0-5 as above, but from the *measured* joint positions, the other two
+                joints commanded to stay where they are (the tutorial's rule); the robot starts straight,
+                its foot 5 cm above the ground (the sim's spawn pose), and start_pose is not used. Its leg is
+                limp: the P term asks for at most p x joint_increment_value = 0.5 N m.
+    targets     Box(3) in [-1, 1]: absolute haa, hfe, kfe targets start_pose + action * target_range (rad),
+                clamped to the URDF limits (for PPO and SAC, and for controllers).
+Start: except in action_mode tutorial, the joints start at start_pose (a crouch with the foot under the
+    centre of mass, hopper_training/kinematics.py) with their targets there, and the foot's sphere touches
+    the ground under the spawn point. With initial_tilt {low, high} the whole robot then leans about its
+    foot by an angle drawn uniformly from [low, high] towards a uniformly drawn heading (the env's
+    np_random, seeded by reset(seed=...)); the first observation comes one physics step later.
+Observation: Box(10,) float32 (the tutorial's 8 in its order, then the tilt rates); with observation:
+    extended Box(23,)
     0  distance of the base from desired_pose (m)
     1  roll, 2 pitch, 3 yaw of the base (rad, from the IMU)
     4  foot contact force (N, 0 in the air)
     5  haa, 6 hfe, 7 kfe positions (rad)
     8  roll rate, 9 pitch rate (rad/s: the IMU's angular velocity about the base's x and y axes)
+    extended:
+    10-12  haa, hfe, kfe velocities (rad/s)
+    13-15  base linear velocity (m/s, world frame, odometry)
+    16-18  base angular velocity (rad/s, base frame, IMU)
+    19     foot contact (1 touching, 0 in the air)
+    20-22  the last commanded haa, hfe, kfe targets (rad): the last action's effect (start_pose at reset)
 State key (Q-learning; the params' state_key)
     tilt      (config/stay_up.yaml) forward or backward (the sign of pitch), how far the base leans
               (max(abs(roll), abs(pitch)) in decades, 1e-6 .. 0.1 rad), how fast (max of the abs tilt
@@ -29,10 +50,12 @@ Reward: the sum of the terms, each in info as reward_<term>
 Terminated: base height outside [min_height, max_height), or abs(roll) or abs(pitch) >= max_incl.
 Truncated: after nsteps steps (gymnasium's TimeLimit; registered with 500: 10 s at 20 ms).
 Step: the three joint targets are published and the sim advances running_step of sim time, in lockstep.
-Info: fell, base_height (m), x_travelled (m of the base along +x since the episode started), the reward
+Info: fell, base_height (m), x_travelled (m of the base along +x since the episode started), hops,
+    apex_height, forward_speed, lateral_drift (hopper_training/hop_metrics.py defines them), the reward
     terms, sim_time.
-Metrics: time_upright_s (sim seconds until the fall or the end), upright_whole_horizon (no fall),
-    x_distance (x_travelled at the end).
+Metrics: time_upright_s (sim seconds until the fall or the end), upright_whole_horizon (no fall), fell,
+    x_distance (x_travelled at the end), hops (flights of at least 0.06 s), apex_height (m above the start
+    height, mean over hops), forward_speed (m/s along +x over the last 5 s), lateral_drift (m).
 Arguments: backend ("ros", "direct" or a Backend), params (MonopedParams; default config/stay_up.yaml),
     seed (the direct sim's noise), ros_timeout (s, every wait on the sim).
 
@@ -50,12 +73,15 @@ from typing import Any, ClassVar
 
 import numpy as np
 from gymnasium import spaces
-from tf.transformations import euler_from_quaternion
+from tf.transformations import euler_from_quaternion, quaternion_from_matrix
 
+from pybullet_sim.readings import FrameState
 from robot_rl.backends import Readings
-from robot_rl.env_base import RobotEnv, StepOutcome
+from robot_rl.env_base import Placement, RobotEnv, StepOutcome
 from robot_rl.task import Episode, MetricValue, RobotSpec, TaskSpec
 
+from .hop_metrics import HopTracker
+from .kinematics import LegKinematics, leg_kinematics, tilt_rotation
 from .params import MonopedParams
 from .state import monoped_state_key
 
@@ -64,15 +90,21 @@ JOINTS = ("haa_joint", "hfe_joint", "kfe_joint")
 ODOMETRY_SENSOR = "p3d_base_controller"
 IMU_SENSOR = "gazebo_ros_imu_controller"
 CONTACT_SENSOR = "lowerleg_contactsensor_sensor"
+HOLD = 6  # action_mode accumulate: the action that keeps the targets
 
 MONOPED = RobotSpec(description_package="hopper_description", urdf="urdf/monoped.urdf",
                     sim_config="config/hopper_sim.yaml", sim_launch="roslaunch pybullet_sim hopper_sim.launch")
 
 
 def monoped_metrics(episode: Episode) -> dict[str, MetricValue]:
-    """Sim seconds the monoped stayed up, whether it stayed up until the end, how far it moved along +x."""
+    """Sim seconds the monoped stayed up, whether it stayed up until the end (and whether it fell), how far
+    it moved along +x, and how it hopped (hopper_training/hop_metrics.py)."""
+    info = episode.info
     return {"time_upright_s": episode.duration, "upright_whole_horizon": not episode.terminated,
-            "x_distance": float(episode.info.get("x_travelled", 0.0))}
+            "fell": episode.terminated, "x_distance": float(info.get("x_travelled", 0.0)),
+            "hops": float(info.get("hops", 0)), "apex_height": float(info.get("apex_height", 0.0)),
+            "forward_speed": float(info.get("forward_speed", 0.0)),
+            "lateral_drift": float(info.get("lateral_drift", 0.0))}
 
 
 STAY_UP = TaskSpec(
@@ -87,6 +119,12 @@ def joint_positions(readings: Readings) -> list[float]:
     """haa, hfe, kfe positions, read by name."""
     joints = readings.joints
     return [joints.position[joints.name.index(name)] for name in JOINTS]
+
+
+def joint_velocities(readings: Readings) -> list[float]:
+    """haa, hfe, kfe velocities, read by name."""
+    joints = readings.joints
+    return [joints.velocity[joints.name.index(name)] for name in JOINTS]
 
 
 def base_rpy(readings: Readings) -> tuple[float, float, float]:
@@ -109,32 +147,99 @@ class MonopedEnv(RobotEnv[MonopedParams]):
         """(lower, upper) of haa, hfe and kfe: the URDF's."""
         return self.task.robot.joint_limits(JOINTS)
 
-    def _spaces(self) -> tuple[spaces.Discrete, spaces.Box]:
+    @functools.cached_property
+    def kinematics(self) -> LegKinematics:
+        return leg_kinematics(self.task.robot.urdf_path)
+
+    @property
+    def start_targets(self) -> list[float]:
+        """The joint targets at reset: start_pose, or straight in action_mode tutorial."""
+        if self.params.action_mode == "tutorial":
+            return [0.0] * len(JOINTS)
+        pose = self.params.start_pose
+        return [pose.haa, pose.hfe, pose.kfe]
+
+    def _spaces(self) -> tuple[spaces.Discrete | spaces.Box, spaces.Box]:
         high = np.array([np.inf, math.pi, math.pi / 2, math.pi, np.inf, math.pi, math.pi, math.pi, np.inf, np.inf],
                         dtype=np.float32)
         low = -high
         low[[0, 4]] = 0.0
-        return spaces.Discrete(2 * len(JOINTS)), spaces.Box(low, high, dtype=np.float32)
+        if self.params.observation == "extended":
+            limits = np.array(self.joint_limits, dtype=np.float32)
+            low = np.concatenate([low, np.full(9, -np.inf, np.float32), [0.0], limits[:, 0]]).astype(np.float32)
+            high = np.concatenate([high, np.full(9, np.inf, np.float32), [1.0], limits[:, 1]]).astype(np.float32)
+        mode = self.params.action_mode
+        action_space: spaces.Discrete | spaces.Box
+        if mode == "targets":
+            action_space = spaces.Box(-1.0, 1.0, shape=(len(JOINTS),), dtype=np.float32)
+        else:
+            action_space = spaces.Discrete(2 * len(JOINTS) + (1 if mode == "accumulate" else 0))
+        return action_space, spaces.Box(low, high, dtype=np.float32)
+
+    def _start_placement(self) -> Placement | None:
+        """The crouch (start_pose) with the foot on the ground, or the tutorial's straight leg at the spawn
+        height; leaned about the foot by initial_tilt. None (the sim's spawn pose, untouched) for the tutorial
+        without tilt."""
+        tilt_range = self.params.initial_tilt
+        tutorial = self.params.action_mode == "tutorial"
+        tilt = float(self.np_random.uniform(tilt_range.low, tilt_range.high)) if tilt_range.high > 0.0 else 0.0
+        heading = float(self.np_random.uniform(-math.pi, math.pi)) if tilt_range.high > 0.0 else 0.0
+        if tutorial and tilt == 0.0:
+            return None
+        angles = dict(zip(JOINTS, self.start_targets))
+        foot_in_base = self.kinematics.foot(angles)
+        spawn = self.backend.config.spawn_xyz
+        if tutorial:   # the foot stays where the spawn pose has it (5 cm above the ground)
+            foot = np.array([spawn[0], spawn[1], spawn[2] + foot_in_base[2]])
+        else:
+            foot = np.array([spawn[0], spawn[1], self.kinematics.foot_radius])
+        rotation = np.eye(4)
+        rotation[:3, :3] = tilt_rotation(tilt, heading)
+        base = foot - rotation[:3, :3] @ foot_in_base
+        state = FrameState(tuple(base), tuple(quaternion_from_matrix(rotation)), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+        return state, angles
 
     def _reset_commands(self) -> None:
-        for controller in CONTROLLERS:
-            self.backend.set_command(controller, 0.0)
+        self.targets = self.start_targets
+        for controller, target in zip(CONTROLLERS, self.targets):
+            self.backend.set_command(controller, target)
 
     def _start_episode(self, readings: Readings) -> None:
-        self.start_x = readings.odometry(ODOMETRY_SENSOR).position[0]
+        position = readings.odometry(ODOMETRY_SENSOR).position
+        self.start_x = position[0]
+        self.hop_tracker = HopTracker(self.running_step)
+        self.hop_tracker.reset(readings.stamp, position, contact_force(readings) > 0.0)
 
-    def _apply_action(self, action: int, readings: Readings) -> None:
-        targets = joint_positions(readings)
-        joint, direction = divmod(action, 2)
+    def _clamp(self, joint: int, target: float) -> float:
         low, high = self.joint_limits[joint]
-        targets[joint] = min(max(targets[joint] + self.params.joint_increment_value * (1 - 2 * direction), low), high)
-        for controller, target in zip(CONTROLLERS, targets):
+        return min(max(target, low), high)
+
+    def _apply_action(self, action: Any, readings: Readings) -> None:
+        mode = self.params.action_mode
+        if mode == "targets":
+            start = self.start_targets
+            self.targets = [self._clamp(j, start[j] + float(action[j]) * self.params.target_range)
+                            for j in range(len(JOINTS))]
+        elif action != HOLD:
+            # tutorial: from the measured positions; accumulate: from the last commanded targets
+            targets = joint_positions(readings) if mode == "tutorial" else list(self.targets)
+            joint, direction = divmod(action, 2)
+            step = self.params.joint_increment_value * (1 - 2 * direction)
+            targets[joint] = self._clamp(joint, targets[joint] + step)
+            self.targets = targets
+        for controller, target in zip(CONTROLLERS, self.targets):
             self.backend.set_command(controller, target)
 
     def _observe(self, readings: Readings) -> np.ndarray:
-        roll_rate, pitch_rate, _ = readings.imu(IMU_SENSOR).angular_velocity
-        return np.array([self._distance_from_desired_pose(readings), *base_rpy(readings), contact_force(readings),
-                         *joint_positions(readings), roll_rate, pitch_rate], dtype=np.float32)
+        imu = readings.imu(IMU_SENSOR)
+        roll_rate, pitch_rate, _ = imu.angular_velocity
+        force = contact_force(readings)
+        values = [self._distance_from_desired_pose(readings), *base_rpy(readings), force,
+                  *joint_positions(readings), roll_rate, pitch_rate]
+        if self.params.observation == "extended":
+            values += [*joint_velocities(readings), *readings.odometry(ODOMETRY_SENSOR).linear_velocity,
+                       *imu.angular_velocity, 1.0 if force > 0.0 else 0.0, *self.targets]
+        return np.array(values, dtype=np.float32)
 
     def _distance_from_desired_pose(self, readings: Readings) -> float:
         desired = self.params.desired_pose
@@ -144,9 +249,11 @@ class MonopedEnv(RobotEnv[MonopedParams]):
         p = self.params
         roll, pitch, yaw = base_rpy(readings)
         position = readings.odometry(ODOMETRY_SENSOR).position
+        self.hop_tracker.add(readings.stamp, position, contact_force(readings) > 0.0)
         height_ok = p.min_height <= position[2] < p.max_height
         fell = not (height_ok and abs(roll) < p.max_incl and abs(pitch) < p.max_incl)
-        info: dict[str, Any] = {"fell": fell, "base_height": position[2], "x_travelled": position[0] - self.start_x}
+        info: dict[str, Any] = {"fell": fell, "base_height": position[2], "x_travelled": position[0] - self.start_x,
+                                **self.hop_tracker.summary()}
         if fell:
             return {"fall": p.done_reward}, True, info
         terms = {"alive": p.alive_reward,

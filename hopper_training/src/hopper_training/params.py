@@ -7,7 +7,27 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from robot_rl.params import ParamError, Point, TaskParams, param
+from robot_rl.params import ParamError, Params, Point, TaskParams, param
+
+ACTION_MODES = ("accumulate", "tutorial", "targets")
+OBSERVATIONS = ("standard", "extended")
+
+
+@dataclass(frozen=True, kw_only=True)
+class JointPose(Params):
+    """haa, hfe and kfe angles (rad)."""
+
+    haa: float
+    hfe: float
+    kfe: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class TiltRange(Params):
+    """The range of a random tilt (rad)."""
+
+    low: float = param(low=0.0, high=0.5)
+    high: float = param(low=0.0, high=0.5)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -28,8 +48,31 @@ class MonopedParams(TaskParams):
     weight_r5: float = param(doc="penalty weight of the distance from desired_pose")
     state_key: str = param(choices=("tilt", "tutorial"), default="tutorial",
                            doc="the Q-learning state key: tilt (TiltStateKey) or the tutorial's 10 bins")
+    action_mode: str = param(choices=ACTION_MODES, default="accumulate",
+                             doc="accumulate: Discrete(7) steps on the last commanded targets, 6 holds; tutorial: "
+                                 "Discrete(6) steps on the measured positions, straight start; targets: Box(3) "
+                                 "of absolute targets about start_pose")
+    start_pose: JointPose = param(doc="joint angles at reset (rad), foot on the ground (not in action_mode tutorial)")
+    target_range: float = param(low=0.0, low_open=True, high=3.2, default=1.0,
+                                doc="action_mode targets: an action of +/-1 is start_pose +/- this (rad)")
+    observation: str = param(choices=OBSERVATIONS, default="standard",
+                             doc="standard: the 10 values; extended: also joint and base velocities, contact, "
+                                 "the last targets")
+    initial_tilt: TiltRange = param(default=TiltRange(low=0.0, high=0.0),
+                                    doc="at reset the robot leans about its foot by a random angle in [low, "
+                                        "high] (rad) in a random direction")
 
     def check(self, source: str) -> None:
         if not self.min_height < self.max_height:
             raise ParamError(f"{source}: parameter 'min_height' ({self.min_height}) must be below "
                              f"'max_height' ({self.max_height})")
+        if not self.initial_tilt.low <= self.initial_tilt.high:
+            raise ParamError(f"{source}: parameter 'initial_tilt/low' ({self.initial_tilt.low}) must not be above "
+                             f"'initial_tilt/high' ({self.initial_tilt.high})")
+        from .monoped_env import JOINTS, MONOPED  # which imports this module
+        for name, (low, high) in zip(JOINTS, MONOPED.joint_limits(JOINTS)):
+            key = name.removesuffix("_joint")
+            value = getattr(self.start_pose, key)
+            if not low <= value <= high:
+                raise ParamError(f"{source}: parameter 'start_pose/{key}' = {value!r} is outside the URDF's limits "
+                                 f"of {name} [{low}, {high}]")

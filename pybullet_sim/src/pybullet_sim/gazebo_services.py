@@ -2,9 +2,9 @@
 
 An adapter: each handler turns a gazebo_msgs or controller_manager_msgs request into World or
 ControllerManager calls (under the node's World lock) and the result into Gazebo's answer. Services:
-/gazebo/{get,set}_physics_properties, get_world_properties, {get,set}_model_state, get_link_state, and
-<robot_namespace>/controller_manager/{switch,list,load,unload}_controller(s). Bad requests get success
-false (ok false) and change nothing.
+/gazebo/{get,set}_physics_properties, get_world_properties, {get,set}_model_state, set_model_configuration,
+get_link_state, and <robot_namespace>/controller_manager/{switch,list,load,unload}_controller(s). Bad
+requests get success false (ok false) and change nothing.
 """
 from __future__ import annotations
 
@@ -33,6 +33,8 @@ from gazebo_msgs.srv import (
     GetPhysicsPropertiesResponse,
     GetWorldProperties,
     GetWorldPropertiesResponse,
+    SetModelConfiguration,
+    SetModelConfigurationResponse,
     SetModelState,
     SetModelStateResponse,
     SetPhysicsProperties,
@@ -62,6 +64,7 @@ class GazeboServices:
                 ("get_world_properties", GetWorldProperties, self._handle_get_world),
                 ("get_model_state", GetModelState, self._handle_get_model_state),
                 ("set_model_state", SetModelState, self._handle_set_model_state),
+                ("set_model_configuration", SetModelConfiguration, self._handle_set_model_configuration),
                 ("get_link_state", GetLinkState, self._handle_get_link_state)):
             rospy.Service(f"/gazebo/{name}", srv_type, handler)
         manager = f"{node.config.robot_namespace}/controller_manager"
@@ -150,6 +153,24 @@ class GazeboServices:
                 return SetModelStateResponse(success=False,
                                              status_message=f"SetModelState refused, nothing changed: {error}")
         return SetModelStateResponse(success=True, status_message="SetModelState: set model state done")
+
+    def _handle_set_model_configuration(self, request):
+        node = self.node
+        if request.model_name != node.world.robot_name:
+            message = (f"SetModelConfiguration: model [{request.model_name}] does not exist (models: "
+                       f"{node.world.robot_name})")
+            return SetModelConfigurationResponse(success=False, status_message=message)
+        if len(request.joint_names) != len(request.joint_positions):
+            message = (f"SetModelConfiguration refused, nothing changed: {len(request.joint_names)} joint names "
+                       f"but {len(request.joint_positions)} positions")
+            return SetModelConfigurationResponse(success=False, status_message=message)
+        with node.exclusive():
+            try:
+                node.world.set_joint_positions(dict(zip(request.joint_names, request.joint_positions)))
+            except ValueError as error:
+                return SetModelConfigurationResponse(
+                    success=False, status_message=f"SetModelConfiguration refused, nothing changed: {error}")
+        return SetModelConfigurationResponse(success=True, status_message="SetModelConfiguration: success")
 
     def _handle_get_link_state(self, request):
         node = self.node

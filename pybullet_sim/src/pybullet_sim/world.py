@@ -32,7 +32,7 @@ import functools
 import math
 import os
 import tempfile
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar, cast
 
@@ -386,6 +386,22 @@ class World(Measurements):
         com_velocity = tuple(v + w for v, w in zip(state.linear_velocity, spin, strict=True))
         p.resetBasePositionAndOrientation(self._body, com, com_orientation, physicsClientId=self._cid)
         p.resetBaseVelocity(self._body, com_velocity, state.angular_velocity, physicsClientId=self._cid)
+        p.performCollisionDetection(physicsClientId=self._cid)
+        self._imu_previous.clear()
+
+    @_changes(Change.STATE)
+    def set_joint_positions(self, positions: Mapping[str, float]) -> None:
+        """Set movable joints to positions (rad or m), at rest (Gazebo's set_model_configuration); the base and
+        the joints not named keep their state, the controllers their commands. ValueError, with nothing
+        changed, for a joint that is not movable or a position that is not finite."""
+        indices = {name: self._movable[slot] for slot, name in enumerate(self.joint_names)}
+        for name, value in positions.items():
+            if name not in indices:
+                raise ValueError(f"no movable joint {name!r} (joints: {', '.join(self.joint_names)})")
+            if not math.isfinite(value):
+                raise ValueError(f"joint {name!r}: position must be a finite number, got {value!r}")
+        for name, value in positions.items():
+            p.resetJointState(self._body, indices[name], float(value), 0.0, physicsClientId=self._cid)
         p.performCollisionDetection(physicsClientId=self._cid)
         self._imu_previous.clear()
 

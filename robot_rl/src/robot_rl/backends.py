@@ -2,7 +2,9 @@
 
 Both backends expose the same three calls, each returning the same `Readings`:
 `reset(restart_time)`, `set_command(controller, value)` + `step(physics_steps)`; and the same
-`render(width, height)`, an RGB frame from the sim's camera that follows the robot. The ROS backend
+`render(width, height)`, an RGB frame from the sim's camera that follows the robot, and `place(base,
+joints)`, which puts the robot in a start pose after a reset (Gazebo's set_model_configuration and
+set_model_state). The ROS backend
 is lockstep: one call of the sim's ~step_packed service carries the commands, advances the paused sim
 exactly N physics steps and answers with every sensor's values at the new time (packed as numbers and
 names; the sim also publishes them on the sensors' topics for any subscriber).
@@ -23,8 +25,9 @@ import numpy as np
 import yaml
 
 from pybullet_sim.config import RobotConfig, parse_robot_config
-from pybullet_sim.readings import ContactReading, ImuReading, JointStateReading, OdometryReading
+from pybullet_sim.readings import ContactReading, FrameState, ImuReading, JointStateReading, OdometryReading
 from pybullet_sim.sensors import unpack_readings
+from pybullet_sim.urdf import parse_urdf_joints
 
 if TYPE_CHECKING:
     from .task import RobotSpec
@@ -86,6 +89,11 @@ class Backend(abc.ABC):
     def render(self, width: int, height: int) -> np.ndarray:
         """An RGB image (height x width x 3, uint8) of the robot from the sim's camera that follows it."""
 
+    def place(self, base: FrameState, joints: Mapping[str, float]) -> None:
+        """Set the named joints' positions at rest (Gazebo's set_model_configuration), then the base frame's
+        pose and twist in the world frame (set_model_state); the readings change with the next step."""
+        raise NotImplementedError(f"{type(self).__name__} cannot place the robot")
+
     def show(self) -> None:  # noqa: B027 (optional: over ROS the sim node's window or rviz shows the robot)
         """Bring the human view of the robot up to date."""
 
@@ -119,6 +127,10 @@ class DirectBackend(Backend):
 
     def set_command(self, controller: str, value: float) -> None:
         self.world.set_command(controller, value)
+
+    def place(self, base: FrameState, joints: Mapping[str, float]) -> None:
+        self.world.set_joint_positions(joints)
+        self.world.set_model_state(base)
 
     def step(self, physics_steps: int) -> Readings:
         if not self.world.replay_from_reset(physics_steps):
@@ -199,6 +211,8 @@ class RosBackend(Backend):
         self._was_running = not self.sim.is_paused()  # close() leaves the sim as it found it
         self.sim.pause()
         self._stamp: float | None = None  # sim time of the last answer: the next one is checked against it
+        self._model_name = parse_urdf_joints(robot.urdf_path.read_text(encoding="utf-8"), str(robot.urdf_path))[0]
+        self._placing: tuple[Any, Any] | None = None  # their service proxies, made by the first place()
 
     def _readings(self, packed: Any) -> Readings:
         """Readings from a pybullet_sim/PackedReadings answer."""
@@ -267,7 +281,38 @@ class RosBackend(Backend):
     def render(self, width: int, height: int) -> np.ndarray:
         return self.sim.render(width, height)
 
+    def place(self, base: FrameState, joints: Mapping[str, float]) -> None:
+        import rospy
+
+        from gazebo_msgs.msg import ModelState
+        from gazebo_msgs.srv import SetModelConfiguration, SetModelState
+        from pybullet_sim import messages
+        from pybullet_sim.client import SimConnectionError
+        names = ("/gazebo/set_model_configuration", "/gazebo/set_model_state")
+        if self._placing is None:
+            for name in names:
+                try:
+                    rospy.wait_for_service(name, self.timeout)
+                except rospy.ROSException:
+                    raise SimConnectionError(f"service {name} is not available after {self.timeout} s: is the "
+                                             f"sim node of this pybullet_sim version running?") from None
+            self._placing = (rospy.ServiceProxy(names[0], SetModelConfiguration, persistent=True),
+                             rospy.ServiceProxy(names[1], SetModelState, persistent=True))
+        pose, twist = messages.pose_twist_msgs(base)
+        requests = ((self._model_name, "", list(joints), list(joints.values())),
+                    (ModelState(model_name=self._model_name, pose=pose, twist=twist, reference_frame="world"),))
+        for name, proxy, request in zip(names, self._placing, requests, strict=True):
+            try:
+                answer = proxy(*request)
+            except (rospy.ServiceException, rospy.ROSException) as error:
+                raise SimConnectionError(f"service {name} failed: {error}") from None
+            if not answer.success:
+                raise SimConnectionError(f"service {name} refused the start pose: {answer.status_message}")
+
     def close(self) -> None:
+        if self._placing is not None:
+            for proxy in self._placing:
+                proxy.close()
         if self._was_running:
             self.sim.unpause()
         self.sim.close()

@@ -6,7 +6,9 @@ termination. No wall-clock sleeps and no wait-until-the-robot-gets-there loops: 
 running_step of sim time. `reset(seed=...)` also restarts sim time and the sensor noise
 (reset_simulation), so a seeded reset makes the episode reproducible; an unseeded reset uses
 reset_world, as openai_ros does for these robots. A robot spawned above the ground can be given
-`settle_time` of sim time to land (with its reset commands) before the first observation.
+`settle_time` of sim time to land (with its reset commands) before the first observation, and a task
+can put the robot in a start pose of its own after the reset (`_start_placement`, drawn from the env's
+seeded np_random); the first observation then comes after at least one physics step.
 
 The reward is the sum of the task's named terms, and every term is in `info` as `reward_<name>`
 (Gymnasium's hopper_v5 convention). Truncation is gymnasium's TimeLimit (registered with each task's
@@ -30,6 +32,8 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
+from pybullet_sim.readings import FrameState
+
 from .backends import Backend, Readings, make_backend
 from .params import TaskParams
 from .task import TaskSpec
@@ -37,14 +41,15 @@ from .task import TaskSpec
 P = TypeVar("P", bound=TaskParams)
 MAX_PHYSICS_STEPS = 100_000  # pybullet_sim's Step.MAX_STEPS: the most one lockstep step may advance
 StepOutcome = tuple[dict[str, float], bool, dict[str, Any]]   # reward terms, terminated, extra info
+Placement = tuple[FrameState, dict[str, float]]   # the base's pose and twist (world frame), joint positions by name
 
 
-class RobotEnv(gymnasium.Env[np.ndarray, int], Generic[P], abc.ABC):
+class RobotEnv(gymnasium.Env[np.ndarray, Any], Generic[P], abc.ABC):
     """A task's env: subclasses set `task` and implement the hooks below."""
 
     task: ClassVar[TaskSpec[Any]]
     metadata: dict[str, Any] = {"render_modes": ["rgb_array", "human"]}  # + render_fps, per instance
-    action_space: spaces.Discrete  # type: ignore[assignment]  # gymnasium.Env declares Space[int]
+    action_space: spaces.Discrete | spaces.Box
     observation_space: spaces.Box
 
     def __init__(self, backend: str | Backend = "ros", params: P | None = None, seed: int | None = None,
@@ -84,12 +89,16 @@ class RobotEnv(gymnasium.Env[np.ndarray, int], Generic[P], abc.ABC):
 
     # -- task hooks -----------------------------------------------------------------------------
     @abc.abstractmethod
-    def _spaces(self) -> tuple[spaces.Discrete, spaces.Box]:
-        """(action_space, observation_space), from self.params."""
+    def _spaces(self) -> tuple[spaces.Discrete | spaces.Box, spaces.Box]:
+        """(action_space, observation_space), from self.params: Discrete actions are ints, Box ones arrays."""
 
     def _settle_time(self) -> float:
         """Sim seconds the robot gets to land after a reset, before the first observation."""
         return 0.0
+
+    def _start_placement(self) -> Placement | None:
+        """Where the robot starts after a reset, drawn with self.np_random; None: where the reset left it."""
+        return None
 
     @abc.abstractmethod
     def _reset_commands(self) -> None:
@@ -100,7 +109,7 @@ class RobotEnv(gymnasium.Env[np.ndarray, int], Generic[P], abc.ABC):
         """Reset the task's own state (start position...) from the first readings of the episode."""
 
     @abc.abstractmethod
-    def _apply_action(self, action: int, readings: Readings) -> None:
+    def _apply_action(self, action: Any, readings: Readings) -> None:
         """Turn the action into controller commands with self.backend.set_command; `readings` are the latest."""
 
     @abc.abstractmethod
@@ -116,24 +125,35 @@ class RobotEnv(gymnasium.Env[np.ndarray, int], Generic[P], abc.ABC):
         self._check_open()
         super().reset(seed=seed)
         self.readings = self.backend.reset(restart_time=seed is not None)
+        placement = self._start_placement()
+        if placement is not None:
+            self.backend.place(*placement)
         self._reset_commands()
-        if self.settle_steps:
-            self.readings = self.backend.step(self.settle_steps)
+        settle_steps = max(self.settle_steps, 1 if placement is not None else 0)  # readings of the new pose
+        if settle_steps:
+            self.readings = self.backend.step(settle_steps)
         self._start_episode(self.readings)
         if self.render_mode == "human":
             self._wall_origin = None
             self.render()
         return self._observe(self.readings), {"sim_time": self.readings.stamp}
 
-    def step(self, action: int) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         self._check_open()
         if self.readings is None:
             raise gymnasium.error.ResetNeeded("call reset() before step()")
-        # A direct range check first: Discrete.contains costs as much as a tenth of a lockstep exchange.
-        if not (isinstance(action, (int, np.integer)) and 0 <= action < self.action_space.n) \
-                and not self.action_space.contains(action):  # e.g. SB3's predict(): a 0-d integer array
-            raise ValueError(f"action {action!r} is not in {self.action_space}")
-        self._apply_action(int(action), self.readings)
+        space = self.action_space
+        if isinstance(space, spaces.Discrete):
+            # A direct range check first: Discrete.contains costs as much as a tenth of a lockstep exchange.
+            if not (isinstance(action, (int, np.integer)) and 0 <= action < space.n) \
+                    and not space.contains(action):  # e.g. SB3's predict(): a 0-d integer array
+                raise ValueError(f"action {action!r} is not in {space}")
+            action = int(action)
+        else:
+            action = np.asarray(action, dtype=space.dtype)
+            if not space.contains(action):
+                raise ValueError(f"action {action!r} is not in {space}")
+        self._apply_action(action, self.readings)
         self.readings = readings = self.backend.step(self.physics_steps)
         observation = self._observe(readings)
         terms, terminated, info = self._reward_and_termination(observation, readings)

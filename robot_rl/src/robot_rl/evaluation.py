@@ -1,16 +1,20 @@
 """Evaluate a trained run: its greedy policy, then a uniformly random one, on the run's own task.
 
   evaluate.py --qtable RUN [--episodes N] [--horizon-s S] [--backend direct|ros] [--seed S]
-              [--video PATH.mp4 [--video-episodes N] [--video-size WxH]]
+              [--initial-tilt LOW HIGH] [--video PATH.mp4 [--video-episodes N] [--video-size WxH]]
 
 RUN (also --run) is a run folder (training_results/<task>/<run>, or its `latest` link) or its checkpoint:
 qtable.json of tabular Q-learning, or agent.json of a deep agent (its greedy policy is the SB3 model's
 deterministic action, the model rebuilt from agent.json and its weights loaded from model.zip; needs
 requirements-deep.txt: ./ws setup deep). The checkpoint names the task (and a deep run's agent, see
 robot_rl.agents), the run's params.yaml gives its parameters. Each episode lasts until the
-task terminates it or `--horizon-s` seconds of sim time have passed (default: the task's). The last
-output line is one JSON object: {"task", "episodes", "horizon_s", "seed", "greedy": {...}, "random":
-{...}}, each policy with mean_return and the task's metrics (`mean_<metric>`, `<metric>_rate`).
+task terminates it or `--horizon-s` seconds of sim time have passed (default: the task's). A task whose
+params have `initial_tilt` (the monoped's) starts every episode leaning by a random angle in
+`--initial-tilt LOW HIGH` rad (default 0.02 0.05; `0 0`: upright) in a random direction, drawn from the
+evaluation seed, so that no policy can lean on a perfectly upright start. The last output line is one
+JSON object: {"task", "episodes", "horizon_s", "seed", "initial_tilt", "greedy": {...}, "random": {...}},
+each policy with mean_return and the task's metrics (`mean_<metric>`, `<metric>_rate`); "initial_tilt"
+is [LOW, HIGH], or null for a task without it.
 `--video` records the first `--video-episodes` (3) greedy episodes to an mp4 (robot_rl.video: real
 time, at most 30 frames/s, from the sim's camera that follows the robot) and adds "video": {"path",
 "episodes", "frames", "fps"} to the JSON; recording changes none of the numbers.
@@ -27,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import gymnasium
 import numpy as np
 import yaml
 
@@ -39,6 +44,7 @@ from .task import Episode, TaskSpec, find_task, make_env
 from .video import VideoRecorder
 
 MAX_VIDEO_SIDE = 4096
+EVAL_INITIAL_TILT = (0.02, 0.05)  # rad: evaluation episodes start leaning this much, where the task can
 
 
 class TrainedRun:
@@ -97,27 +103,43 @@ def run_episodes(env: Any, policy: Callable[[np.ndarray], int], episodes: int, t
     return {**aggregate({"return": returns}), **aggregate(metrics)}
 
 
+def random_actions(space: Any, rng: np.random.Generator) -> Callable[[np.ndarray], Any]:
+    """Uniformly random actions of a Discrete or Box action space, drawn from `rng`."""
+    if isinstance(space, gymnasium.spaces.Discrete):
+        return lambda _: int(rng.integers(int(space.n)))
+    return lambda _: rng.uniform(space.low, space.high).astype(space.dtype)
+
+
+def with_initial_tilt(params: Any, tilt: tuple[float, float] | None, source: str) -> Any:
+    """`params` with initial_tilt set to `tilt` (LOW, HIGH), if the task has one; None leaves them as they are."""
+    if tilt is None:
+        return params
+    return params.with_changes(source, initial_tilt={"low": tilt[0], "high": tilt[1]})
+
+
 def evaluate(run: TrainedRun, episodes: int, horizon_s: float, backend: str, seed: int,
-             video: VideoRequest | None = None) -> dict[str, Any]:
+             video: VideoRequest | None = None, initial_tilt: tuple[float, float] | None = None) -> dict[str, Any]:
     """Greedy, then seeded uniformly random, `episodes` each, from a seeded first reset; `video` records
-    the first greedy episodes."""
-    steps = max(1, round(horizon_s / run.params.running_step))
+    the first greedy episodes; `initial_tilt` (LOW, HIGH rad) replaces the run's params' (None: the run's)."""
+    params = with_initial_tilt(run.params, initial_tilt, "--initial-tilt")
+    steps = max(1, round(horizon_s / params.running_step))
     rendering = {} if video is None else {"render_mode": "rgb_array", "render_width": video.width,
                                           "render_height": video.height}
-    env = make_env(run.task, params=run.params, backend=backend, seed=seed, max_episode_steps=steps, **rendering)
+    env = make_env(run.task, params=params, backend=backend, seed=seed, max_episode_steps=steps, **rendering)
     recorder = None if video is None else VideoRecorder(env, video.path, video.episodes)
     rng = np.random.default_rng(seed)
-    n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
     try:
         policy = run.policy(env, seed)
         env.reset(seed=seed)
         greedy = run_episodes(recorder or env, policy, episodes, run.task, run.params.running_step)
-        random_policy = run_episodes(env, lambda obs: int(rng.integers(n_actions)), episodes, run.task,
+        random_policy = run_episodes(env, random_actions(env.action_space, rng), episodes, run.task,
                                      run.params.running_step)
     finally:
         (recorder or env).close()
-    report = {"task": run.task.env_id, "episodes": episodes, "horizon_s": steps * run.params.running_step,
-              "seed": seed, "greedy": greedy, "random": random_policy}
+    tilt = getattr(params, "initial_tilt", None)
+    report = {"task": run.task.env_id, "episodes": episodes, "horizon_s": steps * params.running_step,
+              "seed": seed, "initial_tilt": None if tilt is None else [tilt.low, tilt.high], "greedy": greedy,
+              "random": random_policy}
     if recorder is not None:
         report["video"] = {"path": str(recorder.path), "episodes": recorder.episodes_recorded,
                            "frames": recorder.frames, "fps": recorder.fps}
@@ -142,6 +164,9 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str) ->
     parser.add_argument("--backend", choices=("direct", "ros"), default="direct",
                         help="direct: an in-process sim (default); ros: the running sim node")
     parser.add_argument("--seed", type=int, default=0, help="seeds the sim, the random policy and tie breaks")
+    parser.add_argument("--initial-tilt", type=float, nargs=2, metavar=("LOW", "HIGH"),
+                        help=f"episodes start leaning a random angle in [LOW, HIGH] rad, where the task can (default "
+                             f"{EVAL_INITIAL_TILT[0]} {EVAL_INITIAL_TILT[1]}; 0 0: upright)")
     parser.add_argument("--video", type=Path, help="record the first greedy episodes to this .mp4 file")
     parser.add_argument("--video-episodes", type=int, default=3, help="greedy episodes in the video (default 3)")
     parser.add_argument("--video-size", type=video_size, default=(320, 240), help="frame size WxH (default 320x240)")
@@ -173,8 +198,17 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str) ->
         except SimConnectionError as error:
             parser.exit(1, f"evaluate.py: {error}\n")
     horizon_s = args.horizon_s if args.horizon_s is not None else run.task.eval_horizon_s
+    tilted = hasattr(run.params, "initial_tilt")
+    if args.initial_tilt is not None and not tilted:
+        parser.exit(2, f"evaluate.py: --initial-tilt: the task {run.task.env_id} has no initial tilt\n")
+    initial_tilt = ((args.initial_tilt[0], args.initial_tilt[1]) if args.initial_tilt is not None
+                    else EVAL_INITIAL_TILT) if tilted else None
     try:
-        report = evaluate(run, args.episodes, horizon_s, args.backend, args.seed, video)
+        with_initial_tilt(run.params, initial_tilt, "--initial-tilt")
+    except ParamError as error:
+        parser.exit(2, f"evaluate.py: {error}\n")
+    try:
+        report = evaluate(run, args.episodes, horizon_s, args.backend, args.seed, video, initial_tilt)
     except SimConnectionError as error:
         parser.exit(1, f"evaluate.py: {error}\n")
     print(json.dumps(report))
