@@ -17,8 +17,9 @@ contact and the knee's rate:
 - Attitude: in stance the hips apply a torque that makes the ground force point at the robot's centre of
   mass (the knee's thrust then turns nothing), plus a PD on the body's tilt in COMPRESSION and THRUST. A
   torque reaches the joint through its known position PD: q_cmd = q + (tau + d * qdot) / p.
-- Foot placement: in FLIGHT the foot goes to x_f = v * T_s / 2 + k_v * (v - v_d) from the centre of mass,
-  along world x and y (T_s: the last stance time; Raibert's neutral point plus a speed correction), the
+- Foot placement: in FLIGHT the foot goes to x_f = v * T_s / 2 + k_v * (v - v_d) + b from the centre of mass,
+  along world x and y (T_s: the last stance time; Raibert's neutral point plus a speed correction; b: each
+  touchdown adds k_i times the flight's mean speed error, which removes the steady speed error), the
   hips solving for the body's tilt and yaw (the hips cannot hold the yaw of a point foot: it drifts).
 
 The leg's kinematics and masses (LegModel) are hopper_description/urdf/monoped.urdf's; test_hop_controller.py
@@ -133,8 +134,8 @@ class HopGains:
 
     pid_p: float = 10.0              # the joints' position PID (hopper_sim.yaml), to turn torques into targets
     pid_d: float = 0.5
-    landing_knee: float = -0.8       # rad: the knee's target in flight
-    thrust_knee: float = -0.1        # rad: the knee's target in THRUST (adapted per hop when apex_target > 0)
+    landing_knee: float = -0.6       # rad: the knee's target in flight
+    thrust_knee: float = 0.0         # rad: the knee's target in THRUST (adapted per hop when apex_target > 0)
     apex_target: float = 0.0         # m of base height at the apex to adapt the thrust to (0: fixed thrust)
     thrust_gain: float = 1.0         # rad of thrust target per m of apex error
     unload_margin: float = 0.1       # rad: THRUST -> UNLOADING when the knee is this close to its thrust target
@@ -142,7 +143,9 @@ class HopGains:
     attitude_kp: float = 3.0         # N m / rad of hip torque per rad of tilt in stance
     attitude_kd: float = 0.3         # N m s / rad of hip torque per rad/s of tilt rate
     force_through_com: bool = True   # stance hip torques that aim the ground force at the centre of mass
-    placement_kv: float = 0.1        # s: foot placement per m/s of speed error (Raibert's k)
+    placement_kv: float = 0.2        # s: foot placement per m/s of speed error (Raibert's k)
+    placement_ki: float = 0.03       # s: foot placement added each hop per m/s of that flight's speed error
+    max_placement_bias: float = 0.06  # m: the most the per-hop sum may add
     stance_time: float = 0.15        # s: T_s before the first stance is measured
     max_foot_offset: float = 0.25    # m: the largest foot placement from under the centre of mass
     speed: tuple[float, float] = (0.0, 0.0)  # m/s commanded along world x and y
@@ -203,7 +206,9 @@ class HopController:
     apex: float = 0.0                            # m, the last flight's apex height of the base
     _touchdown_time: float = 0.0
     _lost_contact_time: float | None = None
+    placement_bias: list[float] = field(default_factory=lambda: [0.0, 0.0])  # m along world x, y: the per-hop sum
     _flight_energy: list[float] = field(default_factory=list)  # z + vz^2 / 2g of this flight's readings
+    _flight_velocity: list[tuple[float, float]] = field(default_factory=list)  # vx, vy of this flight's readings
 
     def __post_init__(self) -> None:
         self.thrust_knee = self.gains.thrust_knee
@@ -223,8 +228,11 @@ class HopController:
         if self.phase is Phase.FLIGHT:
             self._flight_energy.append(reading.position[2] + reading.linear_velocity[2] ** 2 / (2.0 * GRAVITY))
             vx, vy = reading.linear_velocity[0], reading.linear_velocity[1]
-            world_target = (foot_placement(vx, g.speed[0], self.stance_time, g.placement_kv, g.max_foot_offset),
-                            foot_placement(vy, g.speed[1], self.stance_time, g.placement_kv, g.max_foot_offset))
+            self._flight_velocity.append((vx, vy))
+            world_target = (foot_placement(vx, g.speed[0], self.stance_time, g.placement_kv, g.max_foot_offset)
+                            + self.placement_bias[0],
+                            foot_placement(vy, g.speed[1], self.stance_time, g.placement_kv, g.max_foot_offset)
+                            + self.placement_bias[1])
             target = (math.cos(yaw) * world_target[0] + math.sin(yaw) * world_target[1],
                       -math.sin(yaw) * world_target[0] + math.cos(yaw) * world_target[1])
             haa, hfe = hips_for_foot(self.model, target, (q[0], q[1], g.landing_knee), rotation)
@@ -274,6 +282,12 @@ class HopController:
                         self.thrust_knee = clamp(self.thrust_knee + g.thrust_gain * (g.apex_target - self.apex),
                                                  (g.landing_knee + 0.1, 0.0))
                 self._flight_energy.clear()
+                if self._flight_velocity:
+                    for axis in (0, 1):
+                        error = sum(v[axis] for v in self._flight_velocity) / len(self._flight_velocity) - g.speed[axis]
+                        self.placement_bias[axis] = clamp(self.placement_bias[axis] + g.placement_ki * error,
+                                                          (-g.max_placement_bias, g.max_placement_bias))
+                    self._flight_velocity.clear()
             return
         if not reading.contact:
             if self._lost_contact_time is None:
