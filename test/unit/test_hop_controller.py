@@ -1,17 +1,31 @@
 """Unit tests of the hopping controller (hopper_training.controller): its phase machine on hand-made readings,
 its foot-placement law, its leg model against PyBullet's, and short hops in an in-process World (no ROS)."""
+import json
 import math
-from dataclasses import replace
 
 import numpy as np
 import pybullet as p
 import pytest
 
-from hopper_training.controller import (HopController, HopGains, HopInput, LegModel, Phase, foot_placement,
-                                        hips_for_foot, level_rotation)
+from hopper_training import TASKS
+from hopper_training.controller import (
+    HopController,
+    HopGains,
+    HopInput,
+    LegModel,
+    Phase,
+    foot_placement,
+    hips_for_foot,
+    level_rotation,
+)
+from hopper_training.controller_policy import ControllerPolicy, controller_params
 from hopper_training.hop_trials import lean, load_sim_config, make_world, run_trial
 from hopper_training.monoped_env import MONOPED
 from pybullet_sim.config import ConfigError, parse_robot_config
+from robot_rl import evaluation
+from robot_rl.evaluation import ScriptedPolicy
+from robot_rl.results import aggregate
+from robot_rl.task import Episode
 
 UPRIGHT = (0.0, 0.0, 0.0, 1.0)
 
@@ -59,13 +73,32 @@ def test_a_contact_that_comes_back_keeps_the_stance():
 
 
 def test_the_thrust_adapts_to_the_apex():
-    gains = HopGains(apex_target=1.0, thrust_gain=1.0)
+    gains = HopGains(apex_target=1.0, thrust_gain=1.0, thrust_knee=-0.2)
     low = HopController(gains)
     for t in np.arange(0.0, 0.1, 0.001):  # a flight that peaks at 0.95 m (z + vz^2 / 2g constant)
         low.update(reading(t, False, z=0.95 - 0.5 * 9.81 * t * t, vz=-9.81 * t))
     low.update(reading(0.1, True))
     assert low.apex == pytest.approx(0.95, abs=1e-6)
     assert low.thrust_knee == pytest.approx(gains.thrust_knee + 0.05), "too low: a stronger thrust (knee straighter)"
+
+
+def test_each_hop_adds_its_speed_error_to_the_placement():
+    gains = HopGains(speed=(0.4, 0.0), placement_ki=0.03, max_placement_bias=0.06)
+    controller = HopController(gains)
+    for hop in range(3):
+        for t in np.arange(0.0, 0.1, 0.001):
+            controller.update(reading(hop + t, False, vx=0.2))
+        controller.update(reading(hop + 0.1, True))
+        controller.update(reading(hop + 0.2, False, vx=0.2))
+        controller.update(reading(hop + 0.21, False, vx=0.2))
+        assert controller.placement_bias[0] == pytest.approx(-0.006 * (hop + 1)), "behind, to speed up"
+        assert controller.placement_bias[1] == pytest.approx(0.0)
+    for hop in range(3, 40):
+        controller.update(reading(hop, False, vx=0.2))
+        controller.update(reading(hop + 0.1, True))
+        controller.update(reading(hop + 0.2, False, vx=0.2))
+        controller.update(reading(hop + 0.21, False, vx=0.2))
+    assert controller.placement_bias[0] == pytest.approx(-0.06), "bounded"
 
 
 def test_foot_placement_is_the_neutral_point_plus_the_speed_error():
@@ -87,7 +120,7 @@ def test_the_hips_put_the_foot_where_placement_asks_whatever_the_tilt(roll, pitc
 
 
 def test_in_flight_moving_forward_puts_the_foot_ahead():
-    controller = HopController(HopGains(stance_time=0.1, placement_kv=0.2))
+    controller = HopController(HopGains(stance_time=0.1, placement_kv=0.2))  # no hop yet: no per-hop bias
     haa, hfe, knee = controller.update(reading(0.0, False, vx=0.5, hips=(0.0, 0.3)))
     foot = LegModel().foot_from_com((haa, hfe, knee))
     assert foot[0] == pytest.approx(0.5 * 0.1 / 2 + 0.2 * 0.5, abs=2e-3) and abs(foot[1]) < 2e-3
@@ -176,7 +209,32 @@ def test_a_slow_control_period_loses_the_robot():
     world = make_world(MONOPED.urdf_path, load_sim_config(MONOPED.sim_config_path))
     try:
         lean(world, 0.04, 1.0)
-        result = run_trial(world, HopController(replace(HopGains())), 10.0, control_period=0.02)
+        result = run_trial(world, HopController(), 10.0, control_period=0.02)
     finally:
         world.close()
     assert result.fell
+
+
+# -- evaluate.py --policy controller ----------------------------------------------------------------------
+def test_evaluate_runs_the_controller_policy_with_the_keys_of_greedy(capsys):
+    hopper = TASKS[1]
+    code = evaluation.main(["--policy", "controller", "--task", hopper.name, "--speed", "0.4", "--episodes", "1",
+                            "--horizon-s", "1.0"], TASKS, "evaluate_monoped",
+                           {"controller": ScriptedPolicy(controller_params, ControllerPolicy)})
+    assert code == 0
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    empty = Episode(steps=1, return_=0.0, terminated=False, duration=0.0, info={})
+    greedy_keys = {**aggregate({"return": [0.0]}), **aggregate({k: [v] for k, v in hopper.metrics(empty).items()})}
+    assert report["policy"] == "controller" and report["speed"] == 0.4
+    assert report["horizon_s"] == pytest.approx(1.0) and report["initial_tilt"] == [0.02, 0.05]
+    assert set(report["controller"]) == set(greedy_keys)
+    assert report["controller"]["upright_whole_horizon_rate"] == 1.0 and report["controller"]["mean_hops"] >= 2
+
+
+def test_evaluate_needs_a_run_for_greedy_and_none_for_a_scripted_policy(capsys):
+    policies = {"controller": ScriptedPolicy(controller_params, ControllerPolicy)}
+    for argv in (["--episodes", "1"], ["--policy", "controller", "--qtable", "x"]):
+        with pytest.raises(SystemExit) as exit_info:
+            evaluation.main(argv, TASKS, "evaluate_monoped", policies)
+        assert exit_info.value.code == 2
+        assert "--qtable RUN is needed for the greedy policy, and only for it" in capsys.readouterr().err

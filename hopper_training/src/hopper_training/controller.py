@@ -7,7 +7,7 @@ The ROS node (scripts/hop_controller.py), `evaluate.py --policy controller` and 
 
 Raibert's three parts (Raibert, Brown, Chepponis, IJRR 3(2) 1984), on a phase machine driven by the foot's
 contact and the knee's rate:
-  FLIGHT       -> (contact)                      LOADING
+  FLIGHT       -> (contact)                      LOADING (COMPRESSION if standing at the first reading)
   LOADING      -> (knee flexing)                 COMPRESSION
   COMPRESSION  -> (knee stops flexing)           THRUST
   THRUST       -> (knee near its thrust target)  UNLOADING
@@ -136,6 +136,7 @@ class HopGains:
     pid_d: float = 0.5
     landing_knee: float = -0.6       # rad: the knee's target in flight
     thrust_knee: float = 0.0         # rad: the knee's target in THRUST (adapted per hop when apex_target > 0)
+    start_thrust_knee: float = -0.3  # rad: the first thrust's target when the robot stands at the start
     apex_target: float = 0.0         # m of base height at the apex to adapt the thrust to (0: fixed thrust)
     thrust_gain: float = 1.0         # rad of thrust target per m of apex error
     unload_margin: float = 0.1       # rad: THRUST -> UNLOADING when the knee is this close to its thrust target
@@ -143,6 +144,7 @@ class HopGains:
     attitude_kp: float = 3.0         # N m / rad of hip torque per rad of tilt in stance
     attitude_kd: float = 0.3         # N m s / rad of hip torque per rad/s of tilt rate
     force_through_com: bool = True   # stance hip torques that aim the ground force at the centre of mass
+    flight_swing_gain: float = 3.0   # flight: 1 / (1 - r), r = leg / (leg + body) pitch inertia ~ 2/3 (est.)
     placement_kv: float = 0.2        # s: foot placement per m/s of speed error (Raibert's k)
     placement_ki: float = 0.03       # s: foot placement added each hop per m/s of that flight's speed error
     max_placement_bias: float = 0.06  # m: the most the per-hop sum may add
@@ -204,6 +206,7 @@ class HopController:
     thrust_knee: float = 0.0                     # the thrust target of this hop
     stance_time: float = 0.0                     # s, the last stance's
     apex: float = 0.0                            # m, the last flight's apex height of the base
+    _started: bool = False                       # a reading has been seen
     _touchdown_time: float = 0.0
     _lost_contact_time: float | None = None
     placement_bias: list[float] = field(default_factory=lambda: [0.0, 0.0])  # m along world x, y: the per-hop sum
@@ -236,6 +239,8 @@ class HopController:
             target = (math.cos(yaw) * world_target[0] + math.sin(yaw) * world_target[1],
                       -math.sin(yaw) * world_target[0] + math.cos(yaw) * world_target[1])
             haa, hfe = hips_for_foot(self.model, target, (q[0], q[1], g.landing_knee), rotation)
+            haa, hfe = (clamp(q[0] + g.flight_swing_gain * (haa - q[0]), HIP_LIMITS),
+                        clamp(q[1] + g.flight_swing_gain * (hfe - q[1]), HIP_LIMITS))
             return haa, hfe, clamp(g.landing_knee, KNEE_LIMITS)
         knee_target = self.thrust_knee if self.phase in (Phase.THRUST, Phase.UNLOADING) else g.landing_knee
         torques = np.zeros(2)
@@ -269,10 +274,17 @@ class HopController:
 
     def _advance_phase(self, reading: HopInput) -> None:
         g = self.gains
+        started, self._started = self._started, True
         knee, knee_rate = reading.joint_position[2], reading.joint_velocity[2]
         if self.phase is Phase.FLIGHT:
-            if reading.contact:
+            if reading.contact and not started:  # standing at the start: a gentle first thrust
+                self.phase = Phase.COMPRESSION
+                self.thrust_knee = g.start_thrust_knee
+                self._touchdown_time = reading.time
+            elif reading.contact:
                 self.phase = Phase.LOADING
+                if self.hops == 0:
+                    self.thrust_knee = g.thrust_knee
                 self.hops += 1
                 self._touchdown_time = reading.time
                 self._lost_contact_time = None

@@ -38,7 +38,8 @@ class ControllerPolicy:
     def __call__(self, observation: np.ndarray) -> np.ndarray:
         readings = self.env.readings
         targets = self.controller.update(hop_input(readings.joints, readings.imu(IMU_SENSOR),
-                                                   readings.odometry(ODOMETRY_SENSOR), readings.contact(CONTACT_SENSOR)))
+                                                   readings.odometry(ODOMETRY_SENSOR),
+                                                   readings.contact(CONTACT_SENSOR)))
         action = (np.array(targets) - self.start) / self.target_range
         return np.clip(action, -1.0, 1.0).astype(np.float32)
 

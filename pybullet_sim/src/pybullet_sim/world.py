@@ -160,8 +160,9 @@ class World(Measurements):
 
         if self.config.base_constraint == "vertical":  # the base slides along world z through its spawn pose
             com, orientation = p.getBasePositionAndOrientation(self._body, physicsClientId=cid)
-            p.createConstraint(self._body, -1, -1, -1, p.JOINT_PRISMATIC, transpose_rotate(orientation, (0.0, 0.0, 1.0)),
-                               (0.0, 0.0, 0.0), com, childFrameOrientation=orientation, physicsClientId=cid)
+            up = transpose_rotate(orientation, (0.0, 0.0, 1.0))  # world z in the base frame
+            p.createConstraint(self._body, -1, -1, -1, p.JOINT_PRISMATIC, up, (0.0, 0.0, 0.0), com,
+                               childFrameOrientation=orientation, physicsClientId=cid)
 
         self._link_index = {p.getBodyInfo(self._body, physicsClientId=cid)[0].decode(): -1}
         info = {}
