@@ -120,10 +120,34 @@ def test_the_hips_put_the_foot_where_placement_asks_whatever_the_tilt(roll, pitc
 
 
 def test_in_flight_moving_forward_puts_the_foot_ahead():
-    controller = HopController(HopGains(stance_time=0.1, placement_kv=0.2))  # no hop yet: no per-hop bias
+    gains = HopGains(stance_time=0.1, placement_kv=0.2, flight_swing_gain=1.0)
+    controller = HopController(gains)  # no hop yet: no per-hop bias
     haa, hfe, knee = controller.update(reading(0.0, False, vx=0.5, hips=(0.0, 0.3)))
     foot = LegModel().foot_from_com((haa, hfe, knee))
     assert foot[0] == pytest.approx(0.5 * 0.1 / 2 + 0.2 * 0.5, abs=2e-3) and abs(foot[1]) < 2e-3
+
+
+def test_in_flight_the_hips_go_swing_gain_times_their_way_to_the_placement():
+    """The body turns back by about 2/3 of a hip swing (leg/body inertia ~2): the hips overshoot to 3x."""
+    ik = HopController(HopGains(flight_swing_gain=1.0)).update(reading(0.0, False, vx=0.3, hips=(0.02, 0.3)))
+    swung = HopController(HopGains(flight_swing_gain=3.0)).update(reading(0.0, False, vx=0.3, hips=(0.02, 0.3)))
+    assert swung[0] - 0.02 == pytest.approx(3.0 * (ik[0] - 0.02))
+    assert swung[1] - 0.3 == pytest.approx(3.0 * (ik[1] - 0.3))
+
+
+def test_standing_at_the_start_the_first_thrust_is_gentle():
+    gains = HopGains()
+    controller = HopController(gains)
+    controller.update(reading(0.0, True, knee=-0.9, knee_rate=0.0))
+    assert controller.phase is Phase.COMPRESSION, "standing is a stance under way"
+    targets = controller.update(reading(0.001, True, knee=-0.9, knee_rate=0.0))
+    assert controller.phase is Phase.THRUST, "the knee does not flex: thrust"
+    assert targets[2] == pytest.approx(gains.start_thrust_knee)
+    controller.update(reading(0.05, False))
+    controller.update(reading(0.06, False))
+    controller.update(reading(0.2, True))
+    controller.update(reading(0.21, True, knee=-0.8, knee_rate=-1.0))
+    assert controller.update(reading(0.25, True, knee=-1.0, knee_rate=0.5))[2] == pytest.approx(gains.thrust_knee)
 
 
 def test_a_stance_torque_reaches_the_joint_through_its_position_pd():
