@@ -386,17 +386,21 @@ class EnvWorkers:
             self.close()
 
 
-def checked_actions(actions: Any, space: gymnasium.spaces.Space[Any], n: int) -> list[int]:
-    """One action per env, each checked against `space` before any is sent: a bad action is a ValueError
-    naming it and its env, and no worker steps (or fails on it)."""
+def checked_actions(actions: Any, space: gymnasium.spaces.Space[Any], n: int) -> list[Any]:
+    """One action per env (an int of a Discrete space, an array of a Box), each checked against `space` before
+    any is sent: a bad action is a ValueError naming it and its env, and no worker steps (or fails on it)."""
     values = np.asarray(actions)
-    if values.size != n:
-        raise ValueError(f"{values.size} actions for {n} envs: {actions!r}")
-    checked = []
-    for i, action in enumerate(values.reshape(n)):
+    shape = space.shape or ()
+    discrete = isinstance(space, gymnasium.spaces.Discrete)
+    if values.size != n * int(np.prod(shape)):
+        what = "actions" if discrete else f"values of {space} actions"
+        raise ValueError(f"{values.size} {what} for {n} envs: {actions!r}")
+    checked: list[Any] = []
+    for i, action in enumerate(values.reshape((n, *shape))):
+        action = action if discrete else action.astype(space.dtype)
         if not space.contains(action):
-            raise ValueError(f"action {action.item()!r} of env {i} is not in {space}")
-        checked.append(int(action))
+            raise ValueError(f"action {action.tolist()!r} of env {i} is not in {space}")
+        checked.append(int(action) if discrete else action)
     return checked
 
 
