@@ -2,7 +2,7 @@
 """The hopping controller's staged validation (docs/hopping.md), in-process on PyBullet, no ROS.
 
   hop_stages.py [--stage vertical|in_place|forward|push|all] [--episodes 20] [--seed 0] [--duration 10]
-                [--speed 0.4] [--push 0.5] [--control-period 0.001] [--sim-config PATH]
+                [--speed 0.4] [--push 0.5] [--control-period 0.001] [--apex-target M] [--sim-config PATH]
 
 1 vertical: the base on a vertical slider (the sim config's base_constraint: vertical), one trial:
   apex height mean and spread after the first second. 2 in_place: free 3D hopping from a lean of
@@ -31,16 +31,20 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--speed", type=float, default=0.4, help="the forward stage's commanded m/s (default 0.4)")
     parser.add_argument("--push", type=float, default=0.5, help="the push stage's kick in m/s (default 0.5)")
     parser.add_argument("--control-period", type=float, default=0.001, help="sim s between commands (default 0.001)")
+    parser.add_argument("--apex-target", type=float, default=0.0,
+                        help="base height at the apex that the thrust adapts to, m (default 0: a fixed thrust)")
     parser.add_argument("--sim-config", type=Path, default=MONOPED.sim_config_path,
                         help="the robot's sim config (default hopper_description/config/hopper_sim.yaml)")
     args = parser.parse_args(argv)
     if args.episodes < 1 or not args.duration > 0.0 or not args.control_period > 0.0:
         parser.error("--episodes must be >= 1, --duration and --control-period > 0")
+    if args.apex_target < 0.0:
+        parser.error("--apex-target must be >= 0")
     if not args.sim_config.is_file():
         parser.error(f"--sim-config {args.sim_config}: no such file")
     settings = StageSettings(urdf=MONOPED.urdf_path, sim_config=args.sim_config, episodes=args.episodes,
                              duration=args.duration, seed=args.seed, control_period=args.control_period,
-                             gains=HopGains())
+                             gains=HopGains(apex_target=args.apex_target))
     for stage in STAGES if args.stage == "all" else (args.stage,):
         if stage == "vertical":
             figures = stage_vertical(settings)
