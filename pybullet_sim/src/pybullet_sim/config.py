@@ -18,6 +18,8 @@ __all__ = ["ConfigError", "RobotConfig", "parse_robot_config"]
 JOINT_STATE_CONTROLLER = "joint_state_controller/JointStateController"
 VELOCITY_CONTROLLER = "effort_controllers/JointVelocityController"
 POSITION_CONTROLLER = "effort_controllers/JointPositionController"
+BASE_CONSTRAINTS = ("none", "vertical")  # vertical: the base slides along world z only, kept at its spawn x, y and
+                                         # orientation (a prismatic constraint to the world; hopping's first stage)
 
 
 @dataclass(frozen=True)
@@ -78,6 +80,7 @@ class RobotConfig:
     sensors: tuple[SensorConfig, ...]
     joint_state_controller: str = "joint_state_controller"  # the name of the JointStateController
     camera: CameraConfig = CameraConfig()
+    base_constraint: str = "none"  # one of BASE_CONSTRAINTS
 
     @property
     def joint_states_topic(self) -> str:
@@ -159,6 +162,8 @@ def parse_robot_config(params: Mapping[str, Any], where: str = "~") -> RobotConf
         fov=param(camera, "fov", float, c_where + "/", default.fov, minimum=0.0, exclusive_minimum=True))
     if camera_config.fov >= 180.0:
         raise ConfigError(f"parameter {c_where}/fov must be < 180 degrees, got {camera_config.fov!r}")
+    base_constraint = param(params, "base_constraint", str, top, "none", choices=BASE_CONSTRAINTS)
     return RobotConfig(robot_namespace=namespace, spawn_xyz=xyz, spawn_rpy=rpy, joint_state_rate=joint_state_rate,
                        controllers=tuple(controllers), sensors=tuple(sensors),
-                       joint_state_controller=joint_state_controller, camera=camera_config)
+                       joint_state_controller=joint_state_controller, camera=camera_config,
+                       base_constraint=base_constraint)

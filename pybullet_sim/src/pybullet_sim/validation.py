@@ -31,11 +31,12 @@ class ConfigError(ValueError):
 
 
 def param(params: Mapping[str, Any], key: str, kind: type[T], prefix: str, default: Any = REQUIRED,
-          minimum: float | None = None, exclusive_minimum: bool = False, maximum: float | None = None) -> T:
+          minimum: float | None = None, exclusive_minimum: bool = False, maximum: float | None = None,
+          choices: Sequence[Any] = ()) -> T:
     """params[key] as `kind` (float, int, bool, str or dict; an int is taken as a float), else `default`;
     a ConfigError naming the parameter (`prefix` + key, e.g. "~/controllers/" or "~") when it is missing
     without a default, of another type, not finite, an empty string, below `minimum` (at `minimum`
-    too when `exclusive_minimum`) or above `maximum`."""
+    too when `exclusive_minimum`), above `maximum`, or not one of `choices` (when given)."""
     name = prefix + key
     if key not in params:
         if default is REQUIRED:
@@ -52,6 +53,8 @@ def param(params: Mapping[str, Any], key: str, kind: type[T], prefix: str, defau
         raise ConfigError(f"parameter {name} must be {'>' if exclusive_minimum else '>='} {minimum}, got {value!r}")
     if maximum is not None and value > maximum:  # type: ignore[operator]
         raise ConfigError(f"parameter {name} must be <= {maximum:g}, got {value!r}")
+    if choices and value not in choices:
+        raise ConfigError(f"parameter {name} must be one of {', '.join(map(str, choices))}, got {value!r}")
     return value
 
 

@@ -20,6 +20,8 @@ Semantics kept from Gazebo + ros_control:
   and restarts the noise generator from the seed. Gravity, the time step and the solver settings
   (Gazebo's physics properties) are kept across both, as in Gazebo.
 - Model and link states are the pose and twist of URDF link frames in the world frame.
+- The sim config's `base_constraint: vertical` (not Gazebo's) holds the base on a vertical slider: it keeps
+  its spawn x, y and orientation and moves along world z only (set_model_state's pose is pulled back to it).
 
 Its sensor readers and model and link states are in pybullet_sim.measurements; replay_from_reset
 takes the first steps after a reset from memory (pybullet_sim.starts), bit for bit as stepping would.
@@ -43,7 +45,7 @@ from .pid import EffortPid
 from .readings import FrameState, JointStateReading
 from .sensors import SENSOR_KINDS
 from .starts import MAX_REMEMBERED_STARTS, Change, StartKey, StartMemory
-from .transforms import cross, normalized, quaternion_multiply, rotate
+from .transforms import cross, normalized, quaternion_multiply, rotate, transpose_rotate
 from .urdf import UrdfError, UrdfJoint, parse_urdf_joints
 from .validation import frame_state_problem
 
@@ -156,6 +158,12 @@ class World(Measurements):
                             f"and inertials") from None
         finally:
             os.unlink(handle.name)
+
+        if self.config.base_constraint == "vertical":  # the base slides along world z through its spawn pose
+            com, orientation = p.getBasePositionAndOrientation(self._body, physicsClientId=cid)
+            up = transpose_rotate(orientation, (0.0, 0.0, 1.0))  # world z in the base frame
+            p.createConstraint(self._body, -1, -1, -1, p.JOINT_PRISMATIC, up, (0.0, 0.0, 0.0), com,
+                               childFrameOrientation=orientation, physicsClientId=cid)
 
         self._link_index = {p.getBodyInfo(self._body, physicsClientId=cid)[0].decode(): -1}
         info = {}

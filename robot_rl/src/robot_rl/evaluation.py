@@ -2,6 +2,7 @@
 
   evaluate.py --qtable RUN [--episodes N] [--horizon-s S] [--backend direct|ros] [--seed S]
               [--initial-tilt LOW HIGH] [--video PATH.mp4 [--video-episodes N] [--video-size WxH]]
+  evaluate.py --policy NAME [--task TASK] [--speed M_S] [the options above but --qtable and --video]
 
 RUN (also --run) is a run folder (training_results/<task>/<run>, or its `latest` link) or its checkpoint:
 qtable.json of tabular Q-learning, or agent.json of a deep agent (its greedy policy is the SB3 model's
@@ -15,6 +16,9 @@ evaluation seed, so that no policy can lean on a perfectly upright start. The la
 JSON object: {"task", "episodes", "horizon_s", "seed", "initial_tilt", "greedy": {...}, "random": {...}},
 each policy with mean_return and the task's metrics (`mean_<metric>`, `<metric>_rate`); "initial_tilt"
 is [LOW, HIGH], or null for a task without it.
+`--policy NAME` evaluates instead a hand-written policy that the robot's package offers (the monoped's
+`controller`, hopper_training.controller_policy), commanded `--speed` m/s along +x, on `--task`'s default
+params as that policy needs them; its JSON has "policy": NAME and NAME: {...} with the keys of "greedy".
 `--video` records the first `--video-episodes` (3) greedy episodes to an mp4 (robot_rl.video: real
 time, at most 30 frames/s, from the sim's camera that follows the robot) and adds "video": {"path",
 "episodes", "frames", "fps"} to the JSON; recording changes none of the numbers.
@@ -26,7 +30,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -82,13 +86,26 @@ class VideoRequest:
     height: int = 240
 
 
-def run_episodes(env: Any, policy: Callable[[np.ndarray], int], episodes: int, task: TaskSpec[Any],
+@dataclass(frozen=True)
+class ScriptedPolicy:
+    """A hand-written policy a robot package offers to evaluate.py (`--policy NAME`): `env_params` turns a
+    task's params into those its env needs; `build(env, speed)` makes the policy (observation -> action),
+    which may read env.unwrapped.readings and, if it has a reset(), is reset at each episode's start."""
+
+    env_params: Callable[[TaskSpec[Any], Any], Any]
+    build: Callable[[Any, float], Callable[[np.ndarray], Any]]
+
+
+def run_episodes(env: Any, policy: Callable[[np.ndarray], Any], episodes: int, task: TaskSpec[Any],
                  running_step: float) -> dict[str, float | None]:
     """Mean return and the task's metrics of `episodes` episodes of `policy`."""
     returns: list[float] = []
     metrics: dict[str, list[Any]] = {name: [] for name in task.metric_names}
+    reset_policy = getattr(policy, "reset", None)
     for _ in range(episodes):
         observation, _ = env.reset()
+        if reset_policy is not None:
+            reset_policy()
         total, steps, info, terminated = 0.0, 0, {}, False
         while True:
             observation, reward, terminated, truncated, info = env.step(policy(observation))
@@ -146,6 +163,24 @@ def evaluate(run: TrainedRun, episodes: int, horizon_s: float, backend: str, see
     return report
 
 
+def evaluate_scripted(task: TaskSpec[Any], name: str, scripted: ScriptedPolicy, params: Any, episodes: int,
+                      horizon_s: float, backend: str, seed: int, speed: float) -> dict[str, Any]:
+    """`episodes` episodes of the scripted policy `name` on `params` (as scripted.env_params made them),
+    from a seeded first reset."""
+    steps = max(1, round(horizon_s / params.running_step))
+    env = make_env(task, params=params, backend=backend, seed=seed, max_episode_steps=steps)
+    try:
+        policy = scripted.build(env, speed)
+        env.reset(seed=seed)
+        figures = run_episodes(env, policy, episodes, task, params.running_step)
+    finally:
+        env.close()
+    tilt = getattr(params, "initial_tilt", None)
+    return {"task": task.env_id, "episodes": episodes, "horizon_s": steps * params.running_step, "seed": seed,
+            "initial_tilt": None if tilt is None else [tilt.low, tilt.high], "policy": name, "speed": speed,
+            name: figures}
+
+
 def video_size(text: str) -> tuple[int, int]:
     """WxH (even numbers of pixels, H.264's rule) from the command line."""
     match = re.fullmatch(r"(\d+)x(\d+)", text)
@@ -155,10 +190,19 @@ def video_size(text: str) -> tuple[int, int]:
     return int(match[1]), int(match[2])
 
 
-def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
+def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
+         policies: Mapping[str, ScriptedPolicy] | None = None) -> int:
+    """evaluate.py of a robot package: its `tasks`, and the hand-written `policies` it offers (--policy)."""
+    policies = policies or {}
     parser = argparse.ArgumentParser(prog="evaluate.py", description=__doc__.splitlines()[0])
-    parser.add_argument("--qtable", "--run", dest="run", required=True, type=Path,
-                        help="a run folder, or its qtable.json or agent.json")
+    parser.add_argument("--qtable", "--run", dest="run", type=Path,
+                        help="a run folder, or its qtable.json or agent.json (the greedy policy)")
+    parser.add_argument("--policy", choices=("greedy", *policies), default="greedy",
+                        help="greedy: the trained run's (default); or a hand-written policy of the robot's package")
+    parser.add_argument("--task", choices=[task.name for task in tasks], default=tasks[0].name,
+                        help=f"--policy other than greedy: the task (default {tasks[0].name})")
+    parser.add_argument("--speed", type=float, default=0.0,
+                        help="--policy other than greedy: its commanded speed along +x, m/s (default 0)")
     parser.add_argument("--episodes", type=int, default=20, help="episodes per policy (default 20)")
     parser.add_argument("--horizon-s", type=float, help="sim seconds per episode at most (default: the task's)")
     parser.add_argument("--backend", choices=("direct", "ros"), default="direct",
@@ -171,6 +215,8 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str) ->
     parser.add_argument("--video-episodes", type=int, default=3, help="greedy episodes in the video (default 3)")
     parser.add_argument("--video-size", type=video_size, default=(320, 240), help="frame size WxH (default 320x240)")
     args = parser.parse_args(argv)
+    if (args.run is None) == (args.policy == "greedy"):
+        parser.error("--qtable RUN is needed for the greedy policy, and only for it")
     if args.episodes < 1:
         parser.error("--episodes must be >= 1")
     if args.horizon_s is not None and not args.horizon_s > 0.0:
@@ -184,6 +230,10 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str) ->
         if not 1 <= args.video_episodes <= args.episodes:
             parser.error(f"--video-episodes must be from 1 to --episodes ({args.episodes}), got {args.video_episodes}")
         video = VideoRequest(args.video, args.video_episodes, *args.video_size)
+    if args.policy != "greedy":
+        if video is not None:
+            parser.error("--video records the greedy policy only")
+        return _main_scripted(parser, args, find_task(list(tasks), args.task), policies[args.policy], node_name)
     try:
         run = TrainedRun(args.run, tasks)
     except (OSError, ParamError, ValueError) as error:
@@ -209,6 +259,30 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str) ->
         parser.exit(2, f"evaluate.py: {error}\n")
     try:
         report = evaluate(run, args.episodes, horizon_s, args.backend, args.seed, video, initial_tilt)
+    except SimConnectionError as error:
+        parser.exit(1, f"evaluate.py: {error}\n")
+    print(json.dumps(report))
+    return 0
+
+
+def _main_scripted(parser: argparse.ArgumentParser, args: argparse.Namespace, task: TaskSpec[Any],
+                   scripted: ScriptedPolicy, node_name: str) -> int:
+    try:
+        params = scripted.env_params(task, task.default_params())
+        tilted = hasattr(params, "initial_tilt")
+        if args.initial_tilt is not None and not tilted:
+            parser.exit(2, f"evaluate.py: --initial-tilt: the task {task.env_id} has no initial tilt\n")
+        tilt = (tuple(args.initial_tilt) if args.initial_tilt is not None else EVAL_INITIAL_TILT) if tilted else None
+        params = with_initial_tilt(params, tilt, "--initial-tilt")
+    except ParamError as error:
+        parser.exit(2, f"evaluate.py: {error}\n")
+    horizon_s = args.horizon_s if args.horizon_s is not None else task.eval_horizon_s
+    try:
+        if args.backend == "ros":
+            from .backends import init_ros_node
+            init_ros_node(node_name)
+        report = evaluate_scripted(task, args.policy, scripted, params, args.episodes, horizon_s, args.backend,
+                                   args.seed, args.speed)
     except SimConnectionError as error:
         parser.exit(1, f"evaluate.py: {error}\n")
     print(json.dumps(report))

@@ -1,0 +1,99 @@
+"""The hop_controller node: hopper_training.controller on the tutorial's topics, for a free-running sim.
+
+Subscribes to the monoped's sensors as the tutorial named them (/monoped/joint_states, /monoped/imu/data,
+/odom, /lowerleg_contactsensor_state) and publishes ONLY the three position commands
+(/monoped/{haa,hfe,kfe}_joint_position_controller/command). On each joint_states message at least
+~control_period of sim time after the last command, it runs the controller on the latest message of
+every sensor and publishes the three targets. A sim reset (time going back) restarts the controller.
+
+The sim must run freely (launched with paused:=false, or unpaused with /gazebo/unpause_physics): the
+controller needs a command every 1-5 ms of sim time (docs/hopping.md), so a real_time_factor below 1
+gives a Python node the wall time to keep up (hop_controller.launch: 0.25).
+
+Private params: ~speed_x, ~speed_y (m/s commanded along the body's heading and to its left, default 0),
+~control_period (s of sim time, default 0.001), ~apex_target (m, default 0: a fixed thrust).
+"""
+from __future__ import annotations
+
+import sys
+import threading
+
+import rospy
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import Imu, JointState
+from std_msgs.msg import Float64
+
+from gazebo_msgs.msg import ContactsState
+from pybullet_sim.messages import contact_reading, imu_reading, joint_state_reading, odometry_reading
+from pybullet_sim.readings import ContactReading, ImuReading, OdometryReading
+from pybullet_sim.shutdown import shutdown_on_signals
+
+from .controller import HopController, HopGains, hop_input
+
+JOINT_STATES = "/monoped/joint_states"
+IMU = "/monoped/imu/data"
+ODOMETRY = "/odom"
+CONTACT = "/lowerleg_contactsensor_state"
+COMMANDS = tuple(f"/monoped/{joint}_joint_position_controller/command" for joint in ("haa", "hfe", "kfe"))
+
+
+class HopControllerNode:
+    """Keeps the latest reading of each sensor; runs the controller on joint_states."""
+
+    def __init__(self, controller: HopController, control_period: float):
+        self.controller = controller
+        self.control_period = control_period
+        self._lock = threading.Lock()
+        self._imu: ImuReading | None = None
+        self._odometry: OdometryReading | None = None
+        self._contact: ContactReading | None = None
+        self._last_control = -float("inf")
+        self._publishers = [rospy.Publisher(topic, Float64, queue_size=1, tcp_nodelay=True) for topic in COMMANDS]
+        rospy.Subscriber(IMU, Imu, self._on_imu, queue_size=1, tcp_nodelay=True)
+        rospy.Subscriber(ODOMETRY, Odometry, self._on_odometry, queue_size=1, tcp_nodelay=True)
+        rospy.Subscriber(CONTACT, ContactsState, self._on_contact, queue_size=1, tcp_nodelay=True)
+        rospy.Subscriber(JOINT_STATES, JointState, self._on_joint_states, queue_size=1, tcp_nodelay=True)
+
+    def _on_imu(self, msg: Imu) -> None:
+        self._imu = imu_reading(msg)
+
+    def _on_odometry(self, msg: Odometry) -> None:
+        self._odometry = odometry_reading(msg)
+
+    def _on_contact(self, msg: ContactsState) -> None:
+        self._contact = contact_reading(msg)
+
+    def _on_joint_states(self, msg: JointState) -> None:
+        joints = joint_state_reading(msg)
+        imu, odometry, contact = self._imu, self._odometry, self._contact
+        if imu is None or odometry is None or contact is None:
+            return
+        with self._lock:
+            if joints.stamp < self._last_control:  # the sim was reset
+                self.controller.reset()
+                self._last_control = -float("inf")
+            if joints.stamp - self._last_control < self.control_period - 1e-6:
+                return
+            self._last_control = joints.stamp
+            targets = self.controller.update(hop_input(joints, imu, odometry, contact))
+        for publisher, target in zip(self._publishers, targets, strict=True):
+            publisher.publish(Float64(target))
+
+
+def main() -> int:
+    rospy.init_node("hop_controller", disable_signals=True)
+    shutdown_on_signals()
+    speed = (float(rospy.get_param("~speed_x", 0.0)), float(rospy.get_param("~speed_y", 0.0)))
+    control_period = float(rospy.get_param("~control_period", 0.001))
+    apex_target = float(rospy.get_param("~apex_target", 0.0))
+    if not control_period > 0.0:
+        rospy.logfatal(f"hop_controller cannot start: ~control_period must be > 0 s, got {control_period}")
+        return 1
+    HopControllerNode(HopController(HopGains(speed=speed, apex_target=apex_target)), control_period)
+    rospy.loginfo(f"hop_controller: speed {speed} m/s, a command every {control_period} s of sim time")
+    rospy.spin()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
