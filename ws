@@ -15,6 +15,8 @@
 #   ./ws bench [--reps N] [--sections S,...] [--running-step ROBOT=S] [--markdown]  set up (with the deep agents), then the benchmark (--markdown: also docs/performance.md)
 #   ./ws python [ARGS...]       python inside the workspace environment (the venv, the devel space)
 #   ./ws exec CMD [ARGS...]     CMD inside the workspace environment
+#   ./ws sweep [cube|hopper] [seeds:=0-9] [NAME:=V1,V2 ...] [name:=SWEEP] [resume:=true] [cluster:=ray|ADDRESS]
+#                               many training runs on Ray Tune, a table and a plot (installs requirements-distributed.txt)
 #   ./ws cluster start|join ADDRESS|stop|status  this machine's Ray node (installs requirements-distributed.txt)
 #   ./ws setup [deep|distributed]  only the set-up (deep: also torch and stable-baselines3; distributed: also Ray)
 #   ./ws help                   this text and the arguments of every launch file ./ws run starts
@@ -144,7 +146,7 @@ launch_of() {
 }
 
 usage() {
-  sed -n '2,21p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,23p' "$0" | sed 's/^# \{0,1\}//'
 }
 
 # The usage, then each training launch file's arguments, as roslaunch itself lists them.
@@ -284,6 +286,20 @@ case "$command" in
     enter_environment
     cd "$ROOT"
     exec rosrun workspace_tools bench.py "$@" ;;
+  sweep)
+    for arg in "$@"; do
+      case "$arg" in -h|--help) setup; enter_environment; exec python -m workspace_tools.sweep --help ;; esac
+    done
+    setup
+    agent="$(printf '%s\n' "$@" | sed -n 's/^agent:=//p' | tail -n 1)"
+    if [ -n "$agent" ] && (enter_environment && python -m robot_rl.agents needs-deep "$agent"); then
+      ensure_requirements requirements-deep.txt
+    fi
+    ensure_requirements requirements-distributed.txt
+    enter_environment
+    # Results go where ./ws run puts them unless results_dir:= says otherwise.
+    printf '%s\n' "$@" | grep -q '^results_dir:=' || set -- "$@" "results_dir:=$ROOT/training_results"
+    exec python -m workspace_tools.sweep "$@" ;;
   cluster)
     case "${1:-}" in
       start|stop|status) [ $# -eq 1 ] || [ "$1" = start ] || die "usage: ./ws cluster $1" ;;
