@@ -133,8 +133,9 @@ def _train(job: TrialJob) -> None:
                ROS_IP="127.0.0.1", ROS_LOG_DIR=str(job.log_dir), ROS_HOME=str(job.log_dir))
     task_arg = [f"task:={job.task}"] if job.package == "hopper_training" else []
     command = ["rosrun", "workspace_tools", "roslaunch_checked.py", job.package, "main.launch", *task_arg,
+               # seed:= as ./ws run seed:=S passes it: the launch gives it to the sim (its sensor noise) too
                *launch_args(config=job.config_file, results_dir=Path(job.sweep_dir) / RESULTS_LINK, run=job.name,
-                            resume=str(resume).lower(), agent=job.agent, video="false", quiet="true")]
+                            seed=job.seed, resume=str(resume).lower(), agent=job.agent, video="false", quiet="true")]
     log_path = job.log_dir / "training.log"
     with open(log_path, "ab") as log:
         log.write(f"\n=== {datetime.datetime.now(datetime.UTC).isoformat()} {' '.join(command)}\n".encode())
