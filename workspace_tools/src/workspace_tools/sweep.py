@@ -36,6 +36,7 @@ import dataclasses
 import datetime
 import importlib
 import json
+import logging
 import math
 import os
 import platform
@@ -225,7 +226,7 @@ class Progress:
 def _tune_callback(progress: Progress) -> Any:
     from ray import tune
 
-    class ProgressCallback(tune.Callback):  # type: ignore[misc]
+    class ProgressCallback(tune.Callback):
         def on_trial_result(self, iteration: int, trials: list[Any], trial: Any, result: dict[str, Any],
                             **info: Any) -> None:
             _log(progress.finished(trial.config["job"]["name"], result))
@@ -297,7 +298,7 @@ def _start_ray(spec: SweepSpec, temp_dir: str) -> None:
     import ray
     ray.init(address="local", num_cpus=spec.concurrent or None, include_dashboard=False, _temp_dir=temp_dir,
              _node_ip_address="127.0.0.1", object_store_memory=100 * 2**20, log_to_driver=False,
-             logging_level="WARNING")
+             logging_level=logging.WARNING)
 
 
 def _tune(spec: SweepSpec, sweep_dir: Path, jobs: list[TrialJob], progress: Progress) -> list[str]:
@@ -315,7 +316,8 @@ def _tune(spec: SweepSpec, sweep_dir: Path, jobs: list[TrialJob], progress: Prog
                                   failure_config=tune.FailureConfig(max_failures=spec.max_failures),
                                   callbacks=[_tune_callback(progress)]))
     grid = tuner.fit()
-    return [result.config["job"]["name"] for result in grid if result.error is not None and result.config]
+    results = (grid[i] for i in range(len(grid)))
+    return [result.config["job"]["name"] for result in results if result.error is not None and result.config]
 
 
 def collect_results(spec: SweepSpec, jobs: Sequence[TrialJob]) -> list[TrialResult]:

@@ -94,8 +94,8 @@ def table_csv(results: Sequence[TrialResult]) -> str:
                      *(f"greedy_{k}" for k in greedy), *(f"random_{k}" for k in random)])
     for r in results:
         writer.writerow([r.name, r.seed, *(r.params.get(k, "") for k in params), r.episodes, r.env_steps,
-                         r.wall_time_s, *(_csv(r.train.get(k)) for k in train), *(_csv(r.greedy.get(k)) for k in greedy),
-                         *(_csv(r.random.get(k)) for k in random)])
+                         r.wall_time_s, *(_csv(r.train.get(k)) for k in train),
+                         *(_csv(r.greedy.get(k)) for k in greedy), *(_csv(r.random.get(k)) for k in random)])
     return buf.getvalue()
 
 
