@@ -171,3 +171,33 @@ def test_a_sweep_whose_driver_is_killed_resumes_with_every_episode_once(cluster,
         episodes(run_alone(tmp_path, resumed, nepisodes=60, nsteps=100))[:kept]
     assert sum(line.startswith("| seed=") for line in (sweep / "sweep.md").read_text().splitlines()) == 2
     assert training_processes(cluster) == []
+
+
+def test_a_trial_whose_node_is_lost_runs_again_from_its_checkpoint_on_the_other(tmp_path):
+    """Tune's FailureConfig: the trial on the killed node fails and runs again on the head, resuming its run."""
+    results, log = tmp_path / "results", tmp_path / "sweep.log"
+    sweep = results / "moving_cube" / "lost"
+    with LoopbackCluster(tmp_path / "cluster", nodes=2, cpus_per_node=1) as loopback:
+        driver = start_sweep(loopback, results, log, "seeds:=0-1", "nepisodes:=60", "nsteps:=100", "name:=lost",
+                             "eval_episodes:=1")
+        try:
+            def both_checkpointed() -> bool:
+                return all((sweep / f"seed={seed}" / "qtable.json").is_file() for seed in (0, 1))
+            wait_for(both_checkpointed, 300, f"both trials' first checkpoints (log {log})")
+            loopback.kill_node(1)  # one trial runs on each node: the second node's is lost with it
+            code = finish(driver, log)
+        finally:
+            if driver.poll() is None:
+                os.killpg(driver.pid, signal.SIGKILL)
+                driver.wait(30)
+        output = log.read_text()
+        assert code == 0, output[-4000:]
+        assert "failed; it runs again from its checkpoint" in output, output[-3000:]
+        resumed = [seed for seed in (0, 1)
+                   if "Resuming" in (sweep / "logs" / f"seed={seed}" / "training.log").read_text()]
+        assert len(resumed) == 1, output[-3000:]
+        for seed in (0, 1):
+            run = sweep / f"seed={seed}"
+            assert [row[0] for row in episodes(run)[1:]] == [str(n) for n in range(1, 61)]
+            assert json.loads((run / "summary.json").read_text())["completed"] is True
+        wait_for(lambda: not training_processes(loopback), 60, "the end of every training process")
