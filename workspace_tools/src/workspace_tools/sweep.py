@@ -387,11 +387,11 @@ def main(argv: Sequence[str]) -> int:
     not_done = [job.name for job in jobs if not trial_done(job)]
     if failed:
         _log(f"{len(failed)} trial(s) failed: {', '.join(failed)} (logs in {sweep_dir / 'logs'}); the table has the "
-             f"others; resume:=true name:={spec.name} tries them again")
+             f"others; ./ws sweep {spec.robot} name:={spec.name} resume:=true tries them again")
         return 1
     if not_done:
-        _log(f"interrupted with {len(not_done)} trial(s) not done; continue with ./ws sweep name:={spec.name} "
-             f"resume:=true")
+        _log(f"interrupted with {len(not_done)} trial(s) not done; continue with ./ws sweep {spec.robot} "
+             f"name:={spec.name} resume:=true")
         return INTERRUPTED
     _log(f"sweep {spec.name} done: {sweep_dir / 'sweep.md'}, {sweep_dir / 'sweep.csv'}, "
          f"{sweep_dir / 'learning_curves.png'}")
