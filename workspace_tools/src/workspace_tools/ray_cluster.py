@@ -3,12 +3,12 @@
 `LoopbackCluster(folder, nodes=2)` starts a head (`ray start --head --block`) and nodes - 1 nodes joining it
 (`ray start --address ... --block`), each in a session of its own with a Ray temp folder of its own and
 `cpus_per_node` CPUs, with robot_rl.cluster's options (no dashboard, no usage statistics, a small object
-store, a token of the cluster's own). Every node carries a mark in its environment, which every process it
-starts inherits (Ray's daemons, its workers and what they start: env workers' masters and sim nodes), so
-`processes()` finds them all. `connect()` makes this process the cluster's driver; `kill_node(i)` kills node
-i's process group at once, as a machine lost; close() ends each node by its PID (SIGTERM, then SIGKILL to
-its process group), kills whatever still carries the mark and returns those pids (none, when all ended
-cleanly). Use it as a context manager.
+store, a token: one per process, TOKEN, as Ray reads a driver's once). Every node carries a mark in its
+environment, which every process it starts inherits (Ray's daemons, its workers and what they start: env
+workers' masters and sim nodes), so `processes()` finds them all. `connect()` makes this process the
+cluster's driver (until `disconnect()`); `kill_node(i)` kills node i's process group at once, as a machine
+lost; close() ends each node by its PID (SIGTERM, then SIGKILL to its process group), kills whatever still
+carries the mark and returns those pids (none, when all ended cleanly). Use it as a context manager.
 
 Ray 2.60 does not put a node on 127.0.0.1: it advertises the machine's address and its servers listen on
 every interface (robot_rl.cluster); `listening_sockets()` says where each process of the cluster listens.
@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import ipaddress
 import os
+import secrets
 import signal
 import subprocess
 import time
@@ -29,6 +30,8 @@ from robot_rl import cluster as ray_cluster
 from workspace_tools.launch_reaper import processes_with
 
 MARK_VARIABLE = "ROBOT_RL_RAY_TEST_CLUSTER"
+# One token for every cluster this process starts: Ray reads a driver's token once per process.
+TOKEN = secrets.token_hex(32)
 KILL_WAIT = 10.0  # s for killed processes to be gone
 
 
@@ -40,7 +43,8 @@ class LoopbackCluster:
         self.folder.mkdir(parents=True, exist_ok=True)
         self.mark = uuid.uuid4().hex
         self.token = ray_cluster.token_path(self.folder)
-        ray_cluster.ensure_token(self.token)
+        self.token.write_text(TOKEN)
+        self.token.chmod(0o600)
         self.env = ray_cluster.ray_environment(self.token, {**os.environ, MARK_VARIABLE: self.mark})
         self.processes_started: list[subprocess.Popen[bytes]] = []
         self.temp_dirs: list[Path] = []
@@ -79,12 +83,20 @@ class LoopbackCluster:
         ray.init(address=self.address, **{"log_to_driver": False, "logging_level": "WARNING", **init_kwargs})
         self.connected = True
 
+    def disconnect(self) -> None:
+        """End this process's connection (ray.shutdown), if connect() made it."""
+        if self.connected:
+            import ray
+            ray.shutdown()
+            self.connected = False
+
     def processes(self) -> list[int]:
         """Pids of every live process of the cluster (the nodes and everything they started)."""
         return processes_with(MARK_VARIABLE, self.mark)
 
     def kill_node(self, i: int) -> None:
-        """SIGKILL node i's process group (its `ray start`, raylet and the daemons it started), as a lost machine."""
+        """SIGKILL node i's process group: its `ray start`, raylet and the daemons it started, as a machine lost. Its
+        workers (each in a process group of its own) end on their own once they find their raylet gone."""
         try:
             os.killpg(self.processes_started[i].pid, signal.SIGKILL)
         except ProcessLookupError:
@@ -93,10 +105,7 @@ class LoopbackCluster:
 
     def close(self) -> list[int]:
         """Disconnect, end every node by its PID, then kill what is left of the cluster; returns those pids."""
-        if self.connected:
-            import ray
-            ray.shutdown()
-            self.connected = False
+        self.disconnect()
         for process, temp_dir in reversed(list(zip(self.processes_started, self.temp_dirs))):
             ray_cluster.end_node(process.pid, temp_dir)
         left = self.processes()
