@@ -1,9 +1,14 @@
 """Env workers as Ray actors on a real two-node Ray cluster on this machine (workspace_tools.ray_cluster): a
 tabular run with its envs on both nodes equals the same run over local workers; the actors step as pipe
-workers do; ROS stays on loopback; nothing outlives a run, a closed env or a lost node; and the cluster
-leaves no process behind."""
+workers do; ROS stays on loopback; a tabular run goes on when a node is lost (its actor restarted on the
+other node), with no episode lost or repeated; without a restart a lost node stops the run naming the env;
+nothing outlives a run, a closed env or a lost node, and the cluster leaves no process behind."""
 import csv
 import json
+import os
+import select
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -11,6 +16,9 @@ import numpy as np
 import pytest
 
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from robot_rl.agents import find_agent
+from robot_rl.ledger import TrainingHooks
+from robot_rl.results import RunDirectory
 from robot_rl.vector import WorkerError, make_vector_env
 from workspace_tools.paths import REPO
 from workspace_tools.processes import RosMaster, launch_args
@@ -124,14 +132,14 @@ def test_a_lost_node_stops_the_run_with_its_env_named_and_leaves_nothing(tmp_pat
     try:
         nodes.connect()
         env = make_vector_env(ONE_DISK_WALK, 2, backend="ros", seed=0, params=short_params(), ros_timeout=5.0,
-                              cluster=nodes.address)
+                              cluster=nodes.address, max_restarts=0)
         try:
             env.reset(seed=0)
             env.step([1, 1])
             second = nodes.processes_started[1].pid
             lost = next(i for i, worker in enumerate(env.workers.worker_info) if _on_node_of(worker["pid"], second))
             pids = [env.workers.worker_info[lost]["pid"], *env.workers.worker_info[lost]["children"]]
-            nodes.kill_node(1)  # its raylet and daemons: its workers end once they find their raylet gone
+            nodes.kill_node(1, machine=False)  # its raylet crashed: its workers end once they find it gone
             deadline = time.monotonic() + 60.0
             with pytest.raises(WorkerError, match=rf"worker {lost} \(ray, on node .*\) was lost"):
                 while time.monotonic() < deadline:
@@ -141,6 +149,70 @@ def test_a_lost_node_stops_the_run_with_its_env_named_and_leaves_nothing(tmp_pat
             env.close()
     finally:
         end_cluster(nodes)
+
+
+def test_a_tabular_run_goes_on_when_a_node_is_lost_and_loses_or_repeats_no_episode(tmp_path):
+    """The second node killed mid-run: its actor is restarted on the head (2 CPUs), its episode under way starts
+    anew, and the run ends with every episode once."""
+    nodes = LoopbackCluster(tmp_path / "cluster", nodes=2, cpus_per_node=1, head_cpus=2)
+    try:
+        nodes.connect()
+        params = ONE_DISK_WALK.default_params().with_changes("test", nsteps=15, nepisodes=30)
+        env = make_vector_env(ONE_DISK_WALK, 2, backend="ros", seed=0, params=params, ros_timeout=5.0,
+                              cluster=nodes.address)
+        second = nodes.processes_started[1].pid
+        lost = next(i for i, worker in enumerate(env.workers.worker_info) if _on_node_of(worker["pid"], second))
+        pids = [env.workers.worker_info[lost]["pid"], *env.workers.worker_info[lost]["children"]]
+        first_node = env.workers.worker_info[lost]["node_id"]
+        steps, log = [0], []
+
+        def on_step(*_):
+            steps[0] += 1
+            if steps[0] == 100:
+                nodes.kill_node(1)
+        try:
+            run = RunDirectory.create(tmp_path / "results", "moving_cube", params.to_mapping(),
+                                      ONE_DISK_WALK.metric_names, "lost")
+            hooks = TrainingHooks(log=log.append, on_step=on_step)
+            summary = find_agent("qlearn").make_trainer(env, ONE_DISK_WALK, params, run, hooks).train()
+            moved = env.workers.worker_info[lost]["node_id"]
+        finally:
+            env.close()
+        wait_gone(pids, timeout=30.0)
+    finally:
+        end_cluster(nodes)
+    assert summary["completed"] and summary["episodes"] == 30, log[-5:]
+    assert [int(row["episode"]) for row in episodes(run.path)] == list(range(1, 31))
+    assert any(f"env {lost + 1}/2: worker {lost} (ray" in line and "starts anew" in line for line in log), log
+    assert moved != first_node, "the lost actor runs on the other node now"
+
+
+DRIVER = """
+import json, sys, time
+from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from robot_rl.vector import make_vector_env
+params = ONE_DISK_WALK.default_params().with_changes("test", nsteps=6)
+env = make_vector_env(ONE_DISK_WALK, 2, backend="ros", seed=0, params=params, cluster=sys.argv[1])
+env.reset(seed=0)
+print(json.dumps([pid for worker in env.workers.worker_info for pid in (worker["pid"], *worker["children"])]))
+sys.stdout.flush()
+time.sleep(600)
+"""
+
+
+def test_a_killed_driver_takes_its_actors_and_their_masters_and_sims_with_it(tmp_path, cluster):
+    env = {**os.environ, **cluster.driver_environment, "ROBOT_RL_CLUSTER_DIR": str(cluster.folder)}
+    driver = subprocess.Popen([sys.executable, "-c", DRIVER, cluster.address], stdout=subprocess.PIPE, text=True,
+                              env=env)
+    try:
+        ready, _, _ = select.select([driver.stdout], [], [], 120.0)
+        assert ready, "the driver made no env within 120 s"
+        pids = json.loads(driver.stdout.readline())
+        assert len(pids) == 6 and all(alive(pid) for pid in pids), "2 actors, each with a master and a sim node"
+    finally:
+        driver.kill()
+        driver.wait()
+    wait_gone(pids, timeout=30.0)
 
 
 def _on_node_of(pid, node_pid):

@@ -72,6 +72,15 @@ class WorkerError(RuntimeError):
             shutil.rmtree(self.log_dir, ignore_errors=True)
 
 
+class WorkerRestarted(WorkerError):
+    """Worker `index` was lost and a new one took its place (a Ray actor restarted on another node): the reply
+    owed is lost, the new worker's env has been reset, and `observation`, `info` are that reset's."""
+
+    def __init__(self, message: str, index: int, observation: Any, info: dict[str, Any]):
+        super().__init__(message)
+        self.index, self.observation, self.info = index, observation, info
+
+
 def worker_seeds(seed: int | None, n: int) -> list[int]:
     """N independent seeds in [0, 2**31) (ROS params are 32-bit ints) derived from one by numpy's
     SeedSequence.spawn: the same seed gives the same N seeds; None draws fresh entropy."""

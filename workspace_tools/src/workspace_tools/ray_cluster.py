@@ -2,13 +2,13 @@
 
 `LoopbackCluster(folder, nodes=2)` starts a head (`ray start --head --block`) and nodes - 1 nodes joining it
 (`ray start --address ... --block`), each in a session of its own with a Ray temp folder of its own and
-`cpus_per_node` CPUs, with robot_rl.cluster's options (no dashboard, no usage statistics, a small object
-store, a token: one per process, TOKEN, as Ray reads a driver's once). Every node carries a mark in its
-environment, which every process it starts inherits (Ray's daemons, its workers and what they start: env
-workers' masters and sim nodes), so `processes()` finds them all. `connect()` makes this process the
-cluster's driver (until `disconnect()`); `kill_node(i)` kills node i's process group at once, as a machine
-lost; close() ends each node by its PID (SIGTERM, then SIGKILL to its process group), kills whatever still
-carries the mark and returns those pids (none, when all ended cleanly). Use it as a context manager.
+`cpus_per_node` CPUs (the head `head_cpus` if given), with robot_rl.cluster's options (no dashboard, no usage
+statistics, a small object store, a token: one per process, TOKEN, as Ray reads a driver's once). Every node
+carries a mark in its environment, which every process it starts inherits (Ray's daemons, its workers and what
+they start: env workers' masters and sim nodes), so `processes()` finds them all. `connect()` makes this
+process the cluster's driver (until `disconnect()`); `kill_node(i)` kills node i at once, as a machine lost
+(or its raylet crashed); close() ends each node by its PID (SIGTERM, then SIGKILL to its process group), kills whatever
+still carries the mark and returns those pids (none, when all ended cleanly). Use it as a context manager.
 
 Ray 2.60 does not put a node on 127.0.0.1: it advertises the machine's address and its servers listen on
 every interface (robot_rl.cluster); `listening_sockets()` says where each process of the cluster listens.
@@ -38,7 +38,7 @@ KILL_WAIT = 10.0  # s for killed processes to be gone
 class LoopbackCluster:
     """Ray nodes on this machine (see the module docstring)."""
 
-    def __init__(self, folder: Path, nodes: int = 2, cpus_per_node: int = 1):
+    def __init__(self, folder: Path, nodes: int = 2, cpus_per_node: int = 1, head_cpus: int | None = None):
         self.folder = Path(folder)
         self.folder.mkdir(parents=True, exist_ok=True)
         self.mark = uuid.uuid4().hex
@@ -52,7 +52,7 @@ class LoopbackCluster:
         self.connected = False
         try:
             for i in range(nodes):
-                self._start_node(i, cpus_per_node)
+                self._start_node(i, head_cpus if i == 0 and head_cpus is not None else cpus_per_node)
         except BaseException:
             self.close()
             raise
@@ -94,11 +94,18 @@ class LoopbackCluster:
         """Pids of every live process of the cluster (the nodes and everything they started)."""
         return processes_with(MARK_VARIABLE, self.mark)
 
-    def kill_node(self, i: int) -> None:
-        """SIGKILL node i's process group: its `ray start`, raylet and the daemons it started, as a machine lost. Its
-        workers (each in a process group of its own) end on their own once they find their raylet gone."""
+    def kill_node(self, i: int, machine: bool = True) -> None:
+        """SIGKILL node i at once. `machine`: every process of its session (Ray's, its workers and what they
+        started), as a machine lost; else its process group only (its `ray start`, raylet and daemons, as a
+        raylet crash), whose workers, each in a process group of its own, end once they find their raylet gone."""
+        leader = self.processes_started[i].pid
+        for pid in [pid for pid in self.processes() if _session(pid) == leader] if machine else []:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
         try:
-            os.killpg(self.processes_started[i].pid, signal.SIGKILL)
+            os.killpg(leader, signal.SIGKILL)
         except ProcessLookupError:
             pass
         self.processes_started[i].wait(KILL_WAIT)
@@ -125,6 +132,14 @@ class LoopbackCluster:
     def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
                  traceback: TracebackType | None) -> None:
         self.close()
+
+
+def _session(pid: int) -> int:
+    """The session id of `pid` (0 when it is gone)."""
+    try:
+        return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[3])
+    except OSError:
+        return 0
 
 
 def listening_sockets(pids: list[int]) -> dict[int, list[tuple[str, int]]]:
