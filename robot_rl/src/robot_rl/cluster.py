@@ -251,15 +251,21 @@ def driver_address(cluster: str, folder: Path | None = None) -> str:
     return record.address
 
 
+def prepare_driver(folder: Path | None = None) -> None:
+    """Set this process's environment as a driver's: usage statistics off, and this workspace's token when there
+    is one (else the RAY_AUTH_* variables as they are). Before ray is imported: Ray reads them then."""
+    os.environ["RAY_USAGE_STATS_ENABLED"] = "0"
+    if folder is not None or os.environ.get(STATE_DIR_ENV):
+        token = token_path(state_dir(folder))
+        if token.is_file():
+            os.environ.update(ray_environment(token, {}))
+
+
 def connect(cluster: str, folder: Path | None = None, **init_kwargs: Any) -> str:
-    """ray.init() on `cluster` (see driver_address), with this workspace's token; returns the address. The
+    """ray.init() on `cluster` (see driver_address) as prepare_driver() prepares it; returns the address. The
     workers' output stays in their node's logs (log_to_driver=False) unless init_kwargs say otherwise."""
     address = driver_address(cluster, folder)
-    token = token_path(state_dir(folder))
-    if token.is_file():
-        os.environ.update(ray_environment(token, {}))
-    else:
-        os.environ["RAY_USAGE_STATS_ENABLED"] = "0"
+    prepare_driver(folder)
     import ray
     ray.init(address=address, **{"log_to_driver": False, "logging_level": "WARNING", **init_kwargs})
     return address

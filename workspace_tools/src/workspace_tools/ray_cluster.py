@@ -2,13 +2,13 @@
 
 `LoopbackCluster(folder, nodes=2)` starts a head (`ray start --head --block`) and nodes - 1 nodes joining it
 (`ray start --address ... --block`), each in a session of its own with a Ray temp folder of its own and
-`cpus_per_node` CPUs, with robot_rl.cluster's options (no dashboard, no usage statistics, a small object
-store, a token of the cluster's own). Every node carries a mark in its environment, which every process it
-starts inherits (Ray's daemons, its workers and what they start: env workers' masters and sim nodes), so
-`processes()` finds them all. `connect()` makes this process the cluster's driver; `kill_node(i)` kills node
-i's process group at once, as a machine lost; close() ends each node by its PID (SIGTERM, then SIGKILL to
-its process group), kills whatever still carries the mark and returns those pids (none, when all ended
-cleanly). Use it as a context manager.
+`cpus_per_node` CPUs (the head `head_cpus` if given), with robot_rl.cluster's options (no dashboard, no usage
+statistics, a small object store, a token: one per process, TOKEN, as Ray reads a driver's once). Every node
+carries a mark in its environment, which every process it starts inherits (Ray's daemons, its workers and what
+they start: env workers' masters and sim nodes), so `processes()` finds them all. `connect()` makes this
+process the cluster's driver (until `disconnect()`); `kill_node(i)` kills node i at once, as a machine lost
+(or its raylet crashed); close() ends each node by its PID (SIGTERM, then SIGKILL to its process group), kills whatever
+still carries the mark and returns those pids (none, when all ended cleanly). Use it as a context manager.
 
 Ray 2.60 does not put a node on 127.0.0.1: it advertises the machine's address and its servers listen on
 every interface (robot_rl.cluster); `listening_sockets()` says where each process of the cluster listens.
@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import ipaddress
 import os
+import secrets
 import signal
 import subprocess
 import time
@@ -29,18 +30,21 @@ from robot_rl import cluster as ray_cluster
 from workspace_tools.launch_reaper import processes_with
 
 MARK_VARIABLE = "ROBOT_RL_RAY_TEST_CLUSTER"
+# One token for every cluster this process starts: Ray reads a driver's token once per process.
+TOKEN = secrets.token_hex(32)
 KILL_WAIT = 10.0  # s for killed processes to be gone
 
 
 class LoopbackCluster:
     """Ray nodes on this machine (see the module docstring)."""
 
-    def __init__(self, folder: Path, nodes: int = 2, cpus_per_node: int = 1):
+    def __init__(self, folder: Path, nodes: int = 2, cpus_per_node: int = 1, head_cpus: int | None = None):
         self.folder = Path(folder)
         self.folder.mkdir(parents=True, exist_ok=True)
         self.mark = uuid.uuid4().hex
         self.token = ray_cluster.token_path(self.folder)
-        ray_cluster.ensure_token(self.token)
+        self.token.write_text(TOKEN)
+        self.token.chmod(0o600)
         self.env = ray_cluster.ray_environment(self.token, {**os.environ, MARK_VARIABLE: self.mark})
         self.processes_started: list[subprocess.Popen[bytes]] = []
         self.temp_dirs: list[Path] = []
@@ -48,7 +52,7 @@ class LoopbackCluster:
         self.connected = False
         try:
             for i in range(nodes):
-                self._start_node(i, cpus_per_node)
+                self._start_node(i, head_cpus if i == 0 and head_cpus is not None else cpus_per_node)
         except BaseException:
             self.close()
             raise
@@ -79,24 +83,36 @@ class LoopbackCluster:
         ray.init(address=self.address, **{"log_to_driver": False, "logging_level": "WARNING", **init_kwargs})
         self.connected = True
 
+    def disconnect(self) -> None:
+        """End this process's connection (ray.shutdown), if connect() made it."""
+        if self.connected:
+            import ray
+            ray.shutdown()
+            self.connected = False
+
     def processes(self) -> list[int]:
         """Pids of every live process of the cluster (the nodes and everything they started)."""
         return processes_with(MARK_VARIABLE, self.mark)
 
-    def kill_node(self, i: int) -> None:
-        """SIGKILL node i's process group (its `ray start`, raylet and the daemons it started), as a lost machine."""
+    def kill_node(self, i: int, machine: bool = True) -> None:
+        """SIGKILL node i at once. `machine`: every process of its session (Ray's, its workers and what they
+        started), as a machine lost; else its process group only (its `ray start`, raylet and daemons, as a
+        raylet crash), whose workers, each in a process group of its own, end once they find their raylet gone."""
+        leader = self.processes_started[i].pid
+        for pid in [pid for pid in self.processes() if _session(pid) == leader] if machine else []:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
         try:
-            os.killpg(self.processes_started[i].pid, signal.SIGKILL)
+            os.killpg(leader, signal.SIGKILL)
         except ProcessLookupError:
             pass
         self.processes_started[i].wait(KILL_WAIT)
 
     def close(self) -> list[int]:
         """Disconnect, end every node by its PID, then kill what is left of the cluster; returns those pids."""
-        if self.connected:
-            import ray
-            ray.shutdown()
-            self.connected = False
+        self.disconnect()
         for process, temp_dir in reversed(list(zip(self.processes_started, self.temp_dirs))):
             ray_cluster.end_node(process.pid, temp_dir)
         left = self.processes()
@@ -116,6 +132,14 @@ class LoopbackCluster:
     def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
                  traceback: TracebackType | None) -> None:
         self.close()
+
+
+def _session(pid: int) -> int:
+    """The session id of `pid` (0 when it is gone)."""
+    try:
+        return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[3])
+    except OSError:
+        return 0
 
 
 def listening_sockets(pids: list[int]) -> dict[int, list[tuple[str, int]]]:
