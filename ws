@@ -5,7 +5,8 @@
 #
 #   ./ws run [cube|hopper] [NAME:=VALUE ...]  set up, then train (roslaunch <robot's package> main.launch);
 #                               rviz:=true also installs rviz (Debian's) and shows the robot in it;
-#                               agent:=NAME of a deep agent (robot_rl.agents) also installs requirements-deep.txt
+#                               agent:=NAME of a deep agent (robot_rl.agents) also installs requirements-deep.txt;
+#                               cluster:=ray|ADDRESS (env workers as Ray actors) also installs requirements-distributed.txt
 #   ./ws rviz [cube|hopper] [NAME:=VALUE ...] set up with rviz, then the robot's sim running, seen in rviz
 #   ./ws plot [NAMESPACE] [--output PNG]      a live plot of the reward topics (rqt_plot is not in Debian 12)
 #   ./ws test [PYTEST ARGS]     set up, then the linters and every test (pytest + rostest)
@@ -14,7 +15,10 @@
 #   ./ws bench [--reps N] [--sections S,...] [--running-step ROBOT=S] [--markdown]  set up (with the deep agents), then the benchmark (--markdown: also docs/performance.md)
 #   ./ws python [ARGS...]       python inside the workspace environment (the venv, the devel space)
 #   ./ws exec CMD [ARGS...]     CMD inside the workspace environment
-#   ./ws setup [deep]           only the set-up (deep: also torch and stable-baselines3)
+#   ./ws sweep [cube|hopper] [seeds:=0-9] [NAME:=V1,V2 ...] [name:=SWEEP] [resume:=true] [cluster:=ray|ADDRESS]
+#                               many training runs on Ray Tune, a table and a plot (installs requirements-distributed.txt)
+#   ./ws cluster start|join ADDRESS|stop|status  this machine's Ray node (installs requirements-distributed.txt)
+#   ./ws setup [deep|distributed]  only the set-up (deep: also torch and stable-baselines3; distributed: also Ray)
 #   ./ws help                   this text and the arguments of every launch file ./ws run starts
 set -euo pipefail
 
@@ -129,6 +133,7 @@ enter_environment() {
   # C++ nodes (rosout, robot_state_publisher) bind to ROS_IP, not ROS_HOSTNAME: both keep a run on loopback.
   export ROS_IP="${ROS_IP:-127.0.0.1}"
   export PYTHONDONTWRITEBYTECODE=1
+  export ROBOT_RL_CLUSTER_DIR="${ROBOT_RL_CLUSTER_DIR:-$STATE/cluster}"  # ./ws cluster's node (robot_rl.cluster)
 }
 
 # The top-level launch file of each robot's training, as `./ws run ROBOT` starts it.
@@ -141,7 +146,7 @@ launch_of() {
 }
 
 usage() {
-  sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,23p' "$0" | sed 's/^# \{0,1\}//'
 }
 
 # The usage, then each training launch file's arguments, as roslaunch itself lists them.
@@ -194,8 +199,11 @@ command="${1:-}"
 case "$command" in
   setup)
     setup
-    if [ "${1:-}" = deep ]; then ensure_requirements requirements-deep.txt; elif [ $# -gt 0 ]; then
-      die "usage: ./ws setup [deep]"; fi ;;
+    case "${1:-}" in
+      deep|distributed) ensure_requirements "requirements-$1.txt" ;;
+      "") ;;
+      *) die "usage: ./ws setup [deep|distributed]" ;;
+    esac ;;
   run)
     robot=cube
     if [ $# -gt 0 ] && [[ "$1" != *:=* && "$1" != -* ]]; then robot="$1"; shift; fi
@@ -212,6 +220,7 @@ case "$command" in
     if [ -n "$agent" ] && (enter_environment && python -m robot_rl.agents needs-deep "$agent"); then
       ensure_requirements requirements-deep.txt
     fi
+    if printf '%s\n' "$@" | grep -qE '^cluster:=.'; then ensure_requirements requirements-distributed.txt; fi
     if printf '%s\n' "$@" | grep -qiE '^rviz:=(true|1)$'; then
       [ -n "${DISPLAY:-}" ] || die "rviz:=true needs a display (DISPLAY is not set)"
       ensure_apt_packages "${RVIZ_APT_PACKAGES[@]}"
@@ -257,9 +266,13 @@ case "$command" in
       if grep -rlqE 'robot_rl\.deep|stable_baselines3|torch' --include='*.py' "${paths[@]}" "${named[@]}"; then
         ensure_requirements requirements-deep.txt
       fi
+      if grep -rlqE '^ *(import ray|from ray)|robot_rl\.cluster|ray_cluster' --include='*.py' "${paths[@]}" "${named[@]}"; then
+        ensure_requirements requirements-distributed.txt
+      fi
     else
       ensure_apt_packages "${RVIZ_APT_PACKAGES[@]}" "${PLOT_APT_PACKAGES[@]}" "${TEST_APT_PACKAGES[@]}"
       ensure_requirements requirements-deep.txt
+      ensure_requirements requirements-distributed.txt
     fi
     private_master
     enter_environment
@@ -268,10 +281,35 @@ case "$command" in
   bench)
     setup
     ensure_requirements requirements-deep.txt
+    ensure_requirements requirements-distributed.txt
     private_master
     enter_environment
     cd "$ROOT"
     exec rosrun workspace_tools bench.py "$@" ;;
+  sweep)
+    for arg in "$@"; do
+      case "$arg" in -h|--help) setup; enter_environment; exec python -m workspace_tools.sweep --help ;; esac
+    done
+    setup
+    agent="$(printf '%s\n' "$@" | sed -n 's/^agent:=//p' | tail -n 1)"
+    if [ -n "$agent" ] && (enter_environment && python -m robot_rl.agents needs-deep "$agent"); then
+      ensure_requirements requirements-deep.txt
+    fi
+    ensure_requirements requirements-distributed.txt
+    enter_environment
+    # Results go where ./ws run puts them unless results_dir:= says otherwise.
+    printf '%s\n' "$@" | grep -q '^results_dir:=' || set -- "$@" "results_dir:=$ROOT/training_results"
+    exec python -m workspace_tools.sweep "$@" ;;
+  cluster)
+    case "${1:-}" in
+      start|stop|status) [ $# -eq 1 ] || [ "$1" = start ] || die "usage: ./ws cluster $1" ;;
+      join) [ $# -ge 2 ] || die "usage: ./ws cluster join ADDRESS (HOST:PORT of the head)" ;;
+      *) die "usage: ./ws cluster start|join ADDRESS|stop|status" ;;
+    esac
+    setup
+    ensure_requirements requirements-distributed.txt
+    enter_environment
+    exec python -m robot_rl.cluster "$@" ;;
   python)
     setup
     enter_environment

@@ -22,11 +22,12 @@ from PIL import Image
 
 from workspace_tools.paths import REPO
 from workspace_tools.processes import Processes
+from workspace_tools.sweep_spec import parse_sweep
 
 README = REPO / "README.md"
 PAGES = [README, REPO / "CHANGELOG.md", REPO / "pybullet_sim" / "README.md", *sorted((REPO / "docs").glob("*.md"))]
 README_MAX_LINES = 250
-WS_COMMANDS = {"run", "help", "python", "exec", "test", "lint", "bench", "rviz", "plot", "setup"}
+WS_COMMANDS = {"run", "help", "python", "exec", "test", "lint", "bench", "rviz", "plot", "setup", "cluster", "sweep"}
 ROBOT_LAUNCH = {"cube": ("moving_cube_training", "main.launch"), "hopper": ("hopper_training", "main.launch")}
 SIM_LAUNCH = {"cube": ("pybullet_sim", "cube_sim.launch"), "hopper": ("pybullet_sim", "hopper_sim.launch")}
 REWARD_NAMESPACES = {"/moving_cube", "/monoped"}
@@ -111,7 +112,11 @@ def check_ws(words: list[str]) -> None:
         assert first is None or first in REWARD_NAMESPACES, f"./ws plot {first}: not a reward namespace"
         check_options("robot_rl", "plot_rewards.py", rest)
     elif command == "setup":
-        assert rest in ([], ["deep"]), f"./ws setup takes only 'deep', got {rest}"
+        assert rest in ([], ["deep"], ["distributed"]), f"./ws setup takes only 'deep' or 'distributed', got {rest}"
+    elif command == "cluster":
+        assert first in ("start", "join", "stop", "status"), f"./ws cluster has no command {first}"
+    elif command == "sweep" and "--help" not in rest:
+        parse_sweep(rest)  # the sweep's grammar: SweepError names a bad argument
 
 
 def check_command(words: list[str]) -> None:

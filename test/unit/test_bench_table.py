@@ -107,3 +107,17 @@ def test_the_page_ends_with_what_made_lockstep_fast_and_no_history():
     assert 5 <= len(bullets) <= 8
     assert any("SCHED_BATCH" in line for line in section) and any("replay" in line for line in section)
     assert sum(line.startswith("|---") for line in lines) == 1, "one table: no earlier runs"
+
+
+def test_the_distributed_rows_give_each_transport_and_their_ratio(capsys):
+    data = report(3, [1.9, 1.9, 1.9])
+    pipe, ray = {"1": 700.0, "2": 1200.0}, {"1": 560.0, "2": 1080.0}
+    data["cube"]["distributed"] = {"envs": [1, 2], "steps_per_s": {"pipe": pipe, "ray": ray},
+                                   "ratio_ray_to_pipe": {"1": 0.8, "2": 0.9}}
+    data["cube"]["per_repetition"].update(ray_to_pipe_1=[0.8, 0.7, 0.85], ray_to_pipe_2=[0.9, 0.88, 0.95])
+    lines = table(capsys, data)
+    assert cube_cell(lines, "vector env, ros, N = 2, Ray actors, env steps/s") == "1080"
+    assert cube_cell(lines, "vector env, ros, N = 2, pipe workers, env steps/s") == "1200"
+    assert cube_cell(lines, "vector env, ros, N = 2: Ray actors / pipe workers") == "0.90"
+    ranges = [line.split("|")[2].strip() for line in lines if line.startswith("|   Ray / pipe: lowest-highest")]
+    assert ranges == ["0.70-0.85", "0.88-0.95"], "N = 1, then N = 2"

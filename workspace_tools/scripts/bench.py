@@ -31,6 +31,10 @@ Sections (--sections, default all):
   env over ROS and direct; its env steps per second of wall time, gradient steps included.
 - gazebo: the tutorials' Gazebo-style step.
 - training: 100 episodes of the cube's `main.launch` training.
+- distributed: the gymnasium vector env's env steps/s with its workers as Ray actors (robot_rl.ray_workers)
+  against pipe workers, at N = 1 and 2, over ROS, on a one-node Ray cluster of this machine's cores started
+  for each repetition (workspace_tools.ray_cluster), its daemons running during both; the ratio Ray / pipe.
+  At N = 1 the difference is a Ray actor call's round trip per env step.
 
 The Gazebo-style step is the tutorials' (robot_rl.backends.GazeboStyleBackend under a normal env): unpause,
 publish the command, wait running_step of sim time (on /clock, throttled to 100 Hz of wall time as
@@ -63,9 +67,10 @@ from robot_rl.params import TaskParams
 from robot_rl.task import TaskSpec, make_env
 from workspace_tools.processes import Processes, RosMaster, launch_args
 
-SECTIONS = ("lockstep", "scaling", "deep", "gazebo", "training")
+SECTIONS = ("lockstep", "scaling", "deep", "gazebo", "training", "distributed")
 PERFORMANCE_PAGE = Path(__file__).resolve().parents[2] / "docs" / "performance.md"
 SCALING_ENVS = (1, 2, 4)
+DISTRIBUTED_ENVS = (1, 2)
 
 
 @dataclass(frozen=True)
@@ -189,13 +194,15 @@ def _tree_cpu_s() -> float:
     return total
 
 
-def worker_vector(robot: str, backend: str, n: int, steps: int, running_step: float) -> dict:
-    """robot_rl.vector's gymnasium vector env of n workers: env steps/s (all workers together) and the CPU
-    time per env step of every process involved (this one, the workers, their masters and sim nodes)."""
+def worker_vector(robot: str, backend: str, n: int, steps: int, running_step: float, cluster: str = "") -> dict:
+    """robot_rl.vector's gymnasium vector env of n workers (Ray actors on `cluster` if given): env steps/s (all
+    workers together) and the CPU time per env step of every process involved (this one, the workers, their
+    masters and sim nodes; of Ray actors, which are not this process's children, only this process's)."""
     import numpy as np
 
     from robot_rl.vector import make_vector_env
-    env = make_vector_env(ROBOTS[robot].task, n, backend=backend, seed=0, params=_params(robot, running_step))
+    env = make_vector_env(ROBOTS[robot].task, n, backend=backend, seed=0, params=_params(robot, running_step),
+                          cluster=cluster or None)
     try:
         rng = np.random.default_rng(0)
         n_actions = int(env.single_action_space.n)  # type: ignore[attr-defined]
@@ -398,10 +405,30 @@ def _rep(tmp: Path, rep: int, robot: str, running_step: float, sections: set[str
         s["deep_direct"].append(direct["steps_per_s"])
         s["deep_ratio"].append(ros["steps_per_s"] / direct["steps_per_s"])
         _log(f"rep {rep + 1} {robot}: DQN over ROS {ros['steps_per_s']:.0f}/s, direct {direct['steps_per_s']:.0f}/s")
+    if "distributed" in sections:
+        _distributed_rep(Path(f"{tag}-distributed"), rep, robot, steps, running_step, s)
     if "gazebo" in sections:
         for rtf, gazebo_steps in spec.gazebo_steps.items():
             style = _with_sim(Path(f"{tag}-gazebo{rtf}"), robot, rtf, ["gazebo", robot, gazebo_steps, running_step])
             s[f"gazebo_{int(rtf)}"].append(style["steps_per_s"])
+
+
+def _distributed_rep(folder: Path, rep: int, robot: str, steps: int, running_step: float, s: dict) -> None:
+    """Pipe workers and Ray actors at N = 1 and 2, interleaved, with a one-node Ray cluster up throughout."""
+    from workspace_tools.ray_cluster import LoopbackCluster
+    with LoopbackCluster(folder / "cluster", nodes=1, cpus_per_node=os.cpu_count() or 1) as cluster:
+        rates = {}
+        for n in DISTRIBUTED_ENVS:
+            for transport, address in (("pipe", ""), ("ray", cluster.address)):
+                processes = Processes(folder / f"{transport}-{n}", ROBOT_RL_CLUSTER_DIR=str(cluster.folder))
+                result = _run_worker(processes, ["vector", robot, "ros", n, steps * n, running_step, address],
+                                     timeout=900)
+                rates[transport, n] = result["steps_per_s"]
+                s[f"distributed_{transport}_{n}"].append(rates[transport, n])
+            s[f"ray_to_pipe_{n}"].append(rates["ray", n] / rates["pipe", n])
+    _log(f"rep {rep + 1} {robot}: vector env over ROS, Ray actors / pipe workers: " + ", ".join(
+        f"N={n} {rates['ray', n]:.0f}/{rates['pipe', n]:.0f} steps/s = {rates['ray', n] / rates['pipe', n]:.2f}"
+        for n in DISTRIBUTED_ENVS))
 
 
 def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sections: set[str]) -> dict:
@@ -446,6 +473,12 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
         if "deep" in sections:
             r["dqn"] = {"steps": DEEP_STEPS, "ros_steps_per_s": median(s["deep_ros"]),
                         "direct_steps_per_s": median(s["deep_direct"]), "ratio_ros_to_direct": median(s["deep_ratio"])}
+        if "distributed" in sections:
+            r["distributed"] = {
+                "envs": list(DISTRIBUTED_ENVS),
+                "steps_per_s": {transport: {str(n): median(s[f"distributed_{transport}_{n}"]) for n in DISTRIBUTED_ENVS}
+                                for transport in ("pipe", "ray")},
+                "ratio_ray_to_pipe": {str(n): median(s[f"ray_to_pipe_{n}"]) for n in DISTRIBUTED_ENVS}}
         if "gazebo" in sections:
             r.update(gazebo_style_rtf1_steps_per_s=median(s["gazebo_1"]),
                      gazebo_style_max_speed_steps_per_s=median(s["gazebo_0"]))
@@ -531,6 +564,13 @@ def table_rows(report: dict) -> list[list[str]]:
     _row(rows, report, "DQN learning direct, env steps/s", lambda r: r["dqn"]["direct_steps_per_s"], "{:.0f}")
     _row(rows, report, "DQN: ROS / direct", lambda r: r["dqn"]["ratio_ros_to_direct"], "{:.2f}")
     _range_row(rows, report, "DQN: ROS / direct", "deep_ratio")
+    for n in DISTRIBUTED_ENVS:
+        for transport, label in (("pipe", "pipe workers"), ("ray", "Ray actors")):
+            _row(rows, report, f"vector env, ros, N = {n}, {label}, env steps/s",
+                 lambda r, t=transport, n=n: r["distributed"]["steps_per_s"][t][str(n)], "{:.0f}")
+        _row(rows, report, f"vector env, ros, N = {n}: Ray actors / pipe workers",
+             lambda r, n=n: r["distributed"]["ratio_ray_to_pipe"][str(n)], "{:.2f}")
+        _range_row(rows, report, "Ray / pipe", f"ray_to_pipe_{n}")
     _row(rows, report, "Gazebo-style step at RTF 1, steps/s", lambda r: r["gazebo_style_rtf1_steps_per_s"], "{:.1f}")
     _row(rows, report, "Gazebo-style step at max speed, steps/s", lambda r: r["gazebo_style_max_speed_steps_per_s"],
          "{:.1f}")
@@ -623,7 +663,7 @@ def main(argv) -> int:
         if kind == "lockstep":
             result = worker_lockstep(robot, rest[0], int(rest[1]), float(rest[2]))
         elif kind == "vector":
-            result = worker_vector(robot, rest[0], int(rest[1]), int(rest[2]), float(rest[3]))
+            result = worker_vector(robot, rest[0], int(rest[1]), int(rest[2]), float(rest[3]), *rest[4:])
         elif kind == "qlearn":
             result = worker_qlearn(robot, int(rest[0]), int(rest[1]), float(rest[2]))
         elif kind == "deep":

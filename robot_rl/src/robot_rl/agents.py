@@ -52,7 +52,7 @@ def _resolve(reference: str) -> Any:
 class AgentSpec:
     """One agent. The "module:attr" references are imported when used:
     `trainer` -> make_trainer(spec, env, task, params, run, hooks, resume, agent_params, max_steps),
-    `vector_env` -> a function (task, n, backend=, seed=, params=, ros_timeout=) making N envs,
+    `vector_env` -> a function (task, n, backend=, seed=, params=, ros_timeout=, cluster=) making N envs,
     `policy` -> a function (TrainedRun, its checkpoint) -> PolicyMaker, `params` -> a Params type."""
 
     name: str
@@ -86,9 +86,10 @@ class AgentSpec:
         return None if self.params is None else _resolve(self.params).from_mapping(values, source)
 
     def make_vector_env(self, task: TaskSpec[Any], n: int, backend: str, seed: int, params: TaskParams,
-                        ros_timeout: float) -> Any:
-        """N envs of `task` in worker processes, in the form this agent's trainer takes."""
-        return _resolve(self.vector_env)(task, n, backend=backend, seed=seed, params=params, ros_timeout=ros_timeout)
+                        ros_timeout: float, cluster: str | None = None) -> Any:
+        """N envs of `task` in worker processes (or Ray actors on `cluster`), in the form this agent's trainer takes."""
+        return _resolve(self.vector_env)(task, n, backend=backend, seed=seed, params=params, ros_timeout=ros_timeout,
+                                         cluster=cluster)
 
     def make_trainer(self, env: Any, task: TaskSpec[Any], params: TaskParams, run: RunDirectory,
                      hooks: TrainingHooks, resume: bool = False, agent_params: Params | None = None,

@@ -51,7 +51,7 @@ from .ledger import DEFAULT_HOOKS, Learner, RunLedger, TrainingHooks, TrainingSt
 from .params import MAX_COUNT, ParamError, Params, TaskParams, param
 from .results import EpisodeRecord, RunDirectory, RunFileError, aggregate
 from .task import Episode, TaskSpec
-from .vector import EnvWorkers, as_env_actions, worker_seeds
+from .vector import EnvWorkers, as_env_actions, make_env_workers, worker_seeds
 
 if TYPE_CHECKING:
     from .agents import AgentSpec
@@ -313,9 +313,10 @@ class RobotVecEnv(VecEnv):
 
 
 def make_vec_env(task: TaskSpec[Any], n: int, backend: str, seed: int, params: TaskParams,
-                 ros_timeout: float = 10.0) -> RobotVecEnv:
-    """N envs of `task` in worker processes, as an SB3 VecEnv."""
-    return RobotVecEnv(EnvWorkers(task, n, backend=backend, seed=seed, params=params, ros_timeout=ros_timeout))
+                 ros_timeout: float = 10.0, cluster: str | None = None) -> RobotVecEnv:
+    """N envs of `task` in worker processes (or Ray actors on `cluster`), as an SB3 VecEnv."""
+    return RobotVecEnv(make_env_workers(task, n, cluster, backend=backend, seed=seed, params=params,
+                                        ros_timeout=ros_timeout))
 
 
 class _EpisodeLogger(BaseCallback):

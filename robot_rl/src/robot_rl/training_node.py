@@ -9,7 +9,8 @@ resolved against ~launch_dir, the folder roslaunch ran in (roslaunch runs nodes 
 trained, video.mp4 next to learning_curve.png shows one greedy episode of the final policy (at most
 TRAINING_VIDEO_S of sim time, rendered on the direct backend, so the ROS sim is not needed). With
 ~agent dqn, ppo or sac: the runs go to <results name>-<agent>/; with ~envs N > 1 the env is N workers, each
-with a master and a sim of its own (robot_rl.vector; the launch's own sim then idles).
+with a master and a sim of its own (robot_rl.vector; the launch's own sim then idles); with ~cluster ("ray" or
+an address) the workers are Ray actors on that cluster's nodes (robot_rl.ray_workers), even for one env.
 
 SIGINT or SIGTERM (Ctrl-C, roslaunch shutting down) stops the run cleanly (pybullet_sim.shutdown: a rospy
 shutdown, which ends every wait on the sim at once, and a request to stop, never an exception at whatever
@@ -35,6 +36,7 @@ from pybullet_sim.client import SimConnectionError
 from pybullet_sim.shutdown import shutdown_on_signals, shutting_down
 
 from .agents import DEFAULT_AGENT, AgentSpec, Trainer, find_agent
+from .cluster import ClusterError
 from .evaluation import TrainedRun, VideoRequest, evaluate
 from .ledger import TrainingHooks
 from .params import ParamError, Params, TaskParams, load_yaml_file, param, parse_scalar
@@ -78,10 +80,11 @@ class NodeParams(Params):
     agent_config: str = param(default="", doc="a deep agent's YAML; empty: robot_rl/config/<agent>.yaml")
     max_steps: int = param(low=0, high=10**12, default=0, doc="a deep agent's env step budget; 0: nepisodes decides")
     envs: int = param(low=1, default=1, doc="envs; more than 1: workers with a master and a sim each")
+    cluster: str = param(default="", doc="empty: the workers on this machine; ray or HOST:PORT: Ray actors there")
 
     def check(self, source: str) -> None:
         cores = os.cpu_count() or 1
-        if self.envs > MAX_ENVS_PER_CORE * cores:
+        if not self.cluster and self.envs > MAX_ENVS_PER_CORE * cores:  # a cluster's CPUs are Ray's to count
             raise ParamError(f"{source}: parameter 'envs' = {self.envs} is more than {MAX_ENVS_PER_CORE} per core "
                              f"({MAX_ENVS_PER_CORE * cores} on this machine's {cores}): each env steps a sim node "
                              f"of its own as fast as it can, and more would only slow every one down")
@@ -170,12 +173,19 @@ def _open_run(node: NodeParams, results_name: str, checkpoint_name: str, params:
                               f"continues it; a new run needs another name") from None
 
 
-def _make_env(task: TaskSpec[Any], params: TaskParams, agent: AgentSpec, envs: int, timeout: float) -> Any:
-    """The env(s) to train on: over this master's sim, or N workers with sims of their own."""
-    if envs == 1:
+def _make_env(task: TaskSpec[Any], params: TaskParams, agent: AgentSpec, envs: int, timeout: float,
+              cluster: str) -> Any:
+    """The env(s) to train on: over this master's sim, or N workers (or Ray actors) with sims of their own."""
+    if envs == 1 and not cluster:
         return make_env(task, params=params, backend="ros", ros_timeout=timeout)
-    rospy.loginfo("Starting %d envs, each with a ROS master and a sim node of its own", envs)
-    return agent.make_vector_env(task, envs, backend="ros", seed=params.seed, params=params, ros_timeout=timeout)
+    where = f" as Ray actors on cluster {cluster}" if cluster else ""
+    rospy.loginfo("Starting %d envs%s, each with a ROS master and a sim node of its own", envs, where)
+    env = agent.make_vector_env(task, envs, backend="ros", seed=params.seed, params=params, ros_timeout=timeout,
+                                cluster=cluster or None)
+    for i, info in enumerate(env.workers.worker_info if cluster else []):
+        rospy.loginfo("Env %d/%d: a Ray actor on node %s (%s), its master %s", i + 1, envs, info["node_ip"],
+                      info["node_id"], info["master_uri"])
+    return env
 
 
 def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
@@ -194,14 +204,16 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     results_root = node.results_root
     log_episode = rospy.logdebug if node.quiet else rospy.loginfo
     try:
-        env = _make_env(task, params, agent, node.envs, node.timeout)
-    except (SimConnectionError, WorkerError, OSError) as error:  # OSError: e.g. a master refusing, on Ctrl-C
+        env = _make_env(task, params, agent, node.envs, node.timeout, node.cluster)
+    except (SimConnectionError, WorkerError, OSError, ClusterError) as error:  # OSError: e.g. a master refusing
         if should_stop():  # e.g. the sim failed to start and roslaunch is ending the launch
             if isinstance(error, WorkerError):
                 error.discard_logs()  # the stop's doing, not a fault to look into
             rospy.logwarn("stopped before training started")
             return INTERRUPTED
         return _fail(str(error))
+    except ModuleNotFoundError as error:  # cluster:= without requirements-distributed.txt
+        return _fail(f"cluster:={node.cluster} needs {error.name}, which is not installed: ./ws setup distributed")
     except ValueError as error:  # params the env refuses (e.g. a running_step of more physics steps than a step takes)
         return _fail(f"{node.config_file}: {error}")
     results_name, checkpoint_name = agent.results_name(task), agent.checkpoint_name

@@ -72,6 +72,15 @@ class WorkerError(RuntimeError):
             shutil.rmtree(self.log_dir, ignore_errors=True)
 
 
+class WorkerRestarted(WorkerError):
+    """Worker `index` was lost and a new one took its place (a Ray actor restarted on another node): the reply
+    owed is lost, the new worker's env has been reset, and `observation`, `info` are that reset's."""
+
+    def __init__(self, message: str, index: int, observation: Any, info: dict[str, Any]):
+        super().__init__(message)
+        self.index, self.observation, self.info = index, observation, info
+
+
 def worker_seeds(seed: int | None, n: int) -> list[int]:
     """N independent seeds in [0, 2**31) (ROS params are 32-bit ints) derived from one by numpy's
     SeedSequence.spawn: the same seed gives the same N seeds; None draws fresh entropy."""
@@ -145,6 +154,33 @@ def _workers_born_ignoring_sigint() -> Iterator[None]:
         signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
 
 
+def answer(env: gymnasium.Env[Any, Any], command: str, data: Any) -> Any:
+    """A worker's reply to a command other than "close" (the same over a pipe and as a Ray actor)."""
+    if command == "step":
+        observation, reward, terminated, truncated, info = env.step(data)
+        final = None
+        if terminated or truncated:
+            final = (observation, info)
+            observation, info = env.reset()
+        return observation, float(reward), bool(terminated), bool(truncated), info, final
+    if command == "reset":
+        return env.reset(seed=data[0], options=data[1])
+    if command == "get_attr":
+        return getattr(env.unwrapped, data)
+    if command == "call":
+        name, args, kwargs = data
+        return getattr(env.unwrapped, name)(*args, **kwargs)
+    raise ValueError(f"unknown worker command {command!r}")
+
+
+def check_workers(n: Any, backend: str) -> None:
+    """ValueError unless `n` envs over `backend` can be made."""
+    if not (isinstance(n, int) and n >= 1):
+        raise ValueError(f"the number of envs must be a whole number >= 1, got {n!r}")
+    if backend not in ("ros", "direct"):
+        raise ValueError(f"backend must be 'ros' or 'direct', got {backend!r}")
+
+
 def _raise_system_exit(_signum: int, _frame: Any) -> None:
     raise SystemExit(1)
 
@@ -183,26 +219,11 @@ def _worker(index: int, recipe: WorkerRecipe, conn: multiprocessing.connection.C
             except EOFError:  # the parent is gone
                 parent_gone = True
                 break
-            if command == "step":
-                observation, reward, terminated, truncated, info = env.step(data)
-                final = None
-                if terminated or truncated:
-                    final = (observation, info)
-                    observation, info = env.reset()
-                conn.send(("ok", (observation, float(reward), bool(terminated), bool(truncated), info, final)))
-            elif command == "reset":
-                conn.send(("ok", env.reset(seed=data[0], options=data[1])))
-            elif command == "get_attr":
-                conn.send(("ok", getattr(env.unwrapped, data)))
-            elif command == "call":
-                name, args, kwargs = data
-                conn.send(("ok", getattr(env.unwrapped, name)(*args, **kwargs)))
-            elif command == "close":
+            if command == "close":
                 closing = True
                 conn.send(("ok", None))
                 break
-            else:
-                raise ValueError(f"unknown worker command {command!r}")
+            conn.send(("ok", answer(env, command, data)))
     except (KeyboardInterrupt, SystemExit):
         pass
     except BaseException as error:  # the parent re-raises it in one line, naming the worker and its logs
@@ -240,10 +261,7 @@ class EnvWorkers:
     def __init__(self, task: TaskSpec[Any], n: int, backend: str = "ros", seed: int | None = 0,
                  params: TaskParams | None = None, ros_timeout: float = 10.0, start_timeout: float = START_TIMEOUT,
                  max_episode_steps: int | None = None, log_dir: Path | None = None, **env_kwargs: Any):
-        if not (isinstance(n, int) and n >= 1):
-            raise ValueError(f"the number of envs must be a whole number >= 1, got {n!r}")
-        if backend not in ("ros", "direct"):
-            raise ValueError(f"backend must be 'ros' or 'direct', got {backend!r}")
+        check_workers(n, backend)
         self.task, self.n, self.backend = task, n, backend
         self.params = params if params is not None else task.default_params()
         self.seeds = worker_seeds(seed, n)
@@ -463,7 +481,19 @@ class RobotVectorEnv(VectorEnv):
         self.workers.close()
 
 
+def make_env_workers(task: TaskSpec[Any], n: int, cluster: str | None = None, **kwargs: Any) -> EnvWorkers:
+    """N env workers: processes on this machine (cluster None or ""), or Ray actors on `cluster` ("ray": this
+    workspace's Ray node, or a cluster's address; robot_rl.ray_workers). The same seeds, order and replies."""
+    if not cluster:
+        return EnvWorkers(task, n, **kwargs)
+    from .cluster import prepare_driver
+    prepare_driver()  # before ray is imported
+    from .ray_workers import RayEnvWorkers
+    return RayEnvWorkers(task, n, cluster=cluster, **kwargs)
+
+
 def make_vector_env(task: TaskSpec[Any], n: int, backend: str = "ros", seed: int | None = 0,
-                    params: TaskParams | None = None, **kwargs: Any) -> RobotVectorEnv:
-    """N envs of `task` in worker processes, as a gymnasium VectorEnv (see EnvWorkers for the arguments)."""
-    return RobotVectorEnv(EnvWorkers(task, n, backend=backend, seed=seed, params=params, **kwargs))
+                    params: TaskParams | None = None, cluster: str | None = None, **kwargs: Any) -> RobotVectorEnv:
+    """N envs of `task` in worker processes (or Ray actors on `cluster`), as a gymnasium VectorEnv (see EnvWorkers
+    for the arguments)."""
+    return RobotVectorEnv(make_env_workers(task, n, cluster, backend=backend, seed=seed, params=params, **kwargs))

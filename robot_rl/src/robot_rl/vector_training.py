@@ -14,7 +14,9 @@ while that env takes its next step (before it when a checkpoint is due: the chec
 table before the next action is chosen). A checkpoint holds the Q-table with the steps of the episodes
 under way at that moment: resume continues from it (those episodes start anew), so with N > 1 a
 resumed run is not bit-for-bit an uninterrupted one. When the envs fail or the run is stopped, the
-Q-table as it is and a summary marked incomplete are saved.
+Q-table as it is and a summary marked incomplete are saved. An env whose worker was lost and replaced
+(a Ray actor restarted on another node: robot_rl.ray_workers, WorkerRestarted) starts the episode it had
+under way anew from the new worker's first observation, as after a resume; no episode is lost or repeated.
 """
 from __future__ import annotations
 
@@ -23,7 +25,7 @@ from typing import Any
 
 from .task import Episode
 from .training import QLearningTrainer
-from .vector import RobotVectorEnv
+from .vector import RobotVectorEnv, WorkerRestarted
 
 
 class VectorQLearningTrainer(QLearningTrainer):
@@ -64,7 +66,14 @@ class VectorQLearningTrainer(QLearningTrainer):
             for i in range(n):
                 if not in_flight[i]:
                     continue
-                observation, reward, terminated, truncated, _, final = env.workers.receive(i, what="answer a step")
+                try:
+                    observation, reward, terminated, truncated, _, final = env.workers.receive(i, what="answer a step")
+                except WorkerRestarted as restart:  # the episode under way starts anew on the new worker
+                    ledger.log(f"env {i + 1}/{n}: {restart}; its episode under way starts anew")
+                    keys[i] = self.state_key.key(restart.observation)
+                    returns[i], steps[i], highest[i] = 0.0, 0, -math.inf
+                    send(i)
+                    continue
                 in_flight[i] = False
                 done = terminated or truncated
                 next_key = self.state_key.key(final[0] if done else observation)

@@ -1,0 +1,402 @@
+"""`./ws sweep`: many whole training runs of one task (trials) over seeds and training params, on Ray Tune.
+
+  python -m workspace_tools.sweep [ROBOT] [task:=T] [agent:=A] [seeds:=0-9] [NAME:=v1,v2 ...] [name:=SWEEP]
+                                  [resume:=true] [cluster:=ADDRESS] [concurrent:=N] [max_failures:=N]
+                                  [eval_episodes:=N] [eval_seed:=S] [results_dir:=DIR]
+
+The grammar and the trials' names: workspace_tools.sweep_spec. Each trial is one Ray Tune trial (one
+CPU) that runs today's training exactly as `./ws run` does (roslaunch_checked.py and the robot's
+main.launch, on a ROS master of its own on a free loopback port, video:=false) with a config that is the
+task's YAML with the trial's seed and parameters, then evaluates the trained run in-process with
+evaluate.py's code (robot_rl.evaluation: greedy and random, eval_episodes each, direct backend,
+evaluation seed eval_seed) into evaluation.json. Everything goes to the sweep's folder
+DIR/<results name>/<SWEEP>/ (SWEEP: name:=, else the UTC time):
+
+  sweep.yaml            the arguments that define the trials, and the trials
+  configs/<trial>.yaml  each trial's config
+  <trial>/              each trial's run folder, as ./ws run writes one, plus evaluation.json
+  logs/<trial>/         each trial's roslaunch output (training.log) and ROS logs
+  tune/                 Ray Tune's own folder (its storage path)
+  sweep.md, sweep.csv   the table (workspace_tools.sweep_table); learning_curves.png: every trial's curve
+                        and the mean
+
+The run folders are the source of truth: a trial whose folder holds a completed summary.json and
+evaluation.json is done; one with a checkpoint continues from it (resume:=true of the training node:
+episodes after the checkpoint are dropped and re-run, none repeated or lost); one without a checkpoint
+starts anew. So a failed trial (Tune retries it up to max_failures times) and an interrupted sweep
+(`resume:=true name:=SWEEP`, which runs the trials not done) go on where their runs' checkpoints are.
+One line per finished trial, with an ETA. Ray runs on this machine (a private temp dir, its sockets on
+127.0.0.1, no dashboard, no usage statistics) unless cluster:=ADDRESS names a running cluster.
+Exit codes: 0 every trial done, 1 a trial failed (the table has the others), 2 bad arguments, 130
+interrupted.
+"""
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import importlib
+import json
+import logging
+import math
+import os
+import platform
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from robot_rl.atomic import write_json_atomic, write_text_atomic
+from robot_rl.cluster import ClusterError
+from robot_rl.ledger import format_duration
+from robot_rl.private_sim import free_port, set_pdeathsig, stop_process
+from robot_rl.results import RunDirectory
+from workspace_tools.processes import launch_args
+from workspace_tools.sweep_spec import SweepError, SweepSpec, Trial, format_value, parse_sweep, trial_config
+from workspace_tools.sweep_table import TrialResult, plot_curves, write_table
+
+INTERRUPTED = 130
+TRIAL_TIMEOUT_S = 24 * 3600.0   # one training run, at most
+RESULTS_LINK = ".results"       # <sweep>/.results/<results name> -> <sweep>: the trials' results_dir
+LOG_TAIL_CHARS = 2000
+
+
+def _log(message: str) -> None:
+    print(f"[sweep] {message}", file=sys.stderr, flush=True)
+
+
+@dataclass(frozen=True)
+class TrialJob:
+    """Everything a trial needs, as plain values (it crosses to a Ray worker in Tune's config)."""
+
+    name: str
+    seed: int
+    params: dict[str, Any]      # the varied parameters (the table's columns)
+    sweep_dir: str
+    package: str
+    task: str
+    agent: str
+    results_name: str
+    checkpoint_name: str
+    eval_episodes: int
+    eval_seed: int
+
+    @property
+    def run_dir(self) -> Path:
+        return Path(self.sweep_dir) / self.name
+
+    @property
+    def config_file(self) -> Path:
+        return Path(self.sweep_dir) / "configs" / f"{self.name}.yaml"
+
+    @property
+    def log_dir(self) -> Path:
+        return Path(self.sweep_dir) / "logs" / self.name
+
+
+def _read_json(path: Path) -> dict[str, Any] | None:
+    try:
+        value = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return value if isinstance(value, dict) else None
+
+
+def trial_done(job: TrialJob) -> bool:
+    summary = _read_json(job.run_dir / "summary.json")
+    return bool(summary and summary.get("completed")) and (job.run_dir / "evaluation.json").is_file()
+
+
+def _prepare_child() -> None:
+    """The training's launcher gets SIGTERM if the trial's process dies (its launch reaper ends the rest), and
+    SIGINT as a terminal gives it: Tune's trial thread blocks SIGINT, and a child inherits the mask (then
+    roslaunch's SIGINT to its master waits 15 s before SIGTERM)."""
+    set_pdeathsig()
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_SETMASK, set())
+
+
+def _train(job: TrialJob) -> None:
+    """Train the trial's run to its end: anew, or on from its checkpoint (as ./ws run ... resume:=true)."""
+    run = job.run_dir
+    resume = (run / job.checkpoint_name).is_file()
+    if run.exists() and not resume:
+        shutil.rmtree(run)  # it ended before its first checkpoint: nothing in it counts, start anew
+    job.log_dir.mkdir(parents=True, exist_ok=True)
+    env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{free_port()}", ROS_HOSTNAME="127.0.0.1",
+               ROS_IP="127.0.0.1", ROS_LOG_DIR=str(job.log_dir), ROS_HOME=str(job.log_dir))
+    task_arg = [f"task:={job.task}"] if job.package == "hopper_training" else []
+    command = ["rosrun", "workspace_tools", "roslaunch_checked.py", job.package, "main.launch", *task_arg,
+               # seed:= as ./ws run seed:=S passes it: the launch gives it to the sim (its sensor noise) too
+               *launch_args(config=job.config_file, results_dir=Path(job.sweep_dir) / RESULTS_LINK, run=job.name,
+                            seed=job.seed, resume=str(resume).lower(), agent=job.agent, video="false", quiet="true")]
+    log_path = job.log_dir / "training.log"
+    with open(log_path, "ab") as log:
+        log.write(f"\n=== {datetime.datetime.now(datetime.UTC).isoformat()} {' '.join(command)}\n".encode())
+        log.flush()
+        process = subprocess.Popen(command, env=env, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
+                                   preexec_fn=_prepare_child)
+    try:
+        code = process.wait(TRIAL_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        raise RuntimeError(f"trial {job.name}: training did not end within {TRIAL_TIMEOUT_S:.0f} s; log "
+                           f"{log_path}") from None
+    finally:
+        stop_process(process, group=False)
+    if code != 0:
+        tail = log_path.read_text(errors="replace")[-LOG_TAIL_CHARS:]
+        raise RuntimeError(f"trial {job.name}: training exited with code {code}; log {log_path}:\n{tail}")
+
+
+def _evaluate(job: TrialJob) -> dict[str, Any]:
+    """evaluation.json of the trained run (robot_rl.evaluation, direct backend), written once."""
+    path = job.run_dir / "evaluation.json"
+    existing = _read_json(path)
+    if existing is not None:
+        return existing
+    from robot_rl.evaluation import TrainedRun, evaluate
+    tasks = importlib.import_module(job.package).TASKS
+    run = TrainedRun(job.run_dir, tasks)
+    report = evaluate(run, episodes=job.eval_episodes, horizon_s=run.task.eval_horizon_s, backend="direct",
+                      seed=job.eval_seed)
+    write_json_atomic(path, report)
+    return report
+
+
+def run_trial_job(job: TrialJob) -> dict[str, Any]:
+    """Train (unless done) and evaluate one trial; returns its numbers for Tune."""
+    started = time.monotonic()
+    summary = _read_json(job.run_dir / "summary.json")
+    if not (summary and summary.get("completed")):
+        _train(job)
+        summary = _read_json(job.run_dir / "summary.json")
+        if not (summary and summary.get("completed")):
+            raise RuntimeError(f"trial {job.name}: training ended without a completed summary.json in {job.run_dir}")
+    evaluation = _evaluate(job)
+    return {"trial_wall_s": time.monotonic() - started, "episodes": summary["episodes"],
+            "env_steps": summary["env_steps"],
+            **{f"greedy_{k}": v for k, v in evaluation["greedy"].items() if v is not None}}
+
+
+def run_trial(config: dict[str, Any]) -> None:
+    """Ray Tune's function trainable: one trial."""
+    from ray import tune
+    tune.report(run_trial_job(TrialJob(**config["job"])))
+
+
+# -- the driver ----------------------------------------------------------------------------------------------
+
+def _greedy_key(headline: str, greedy: dict[str, Any]) -> str:
+    return f"{headline}_rate" if f"{headline}_rate" in greedy else f"mean_{headline}"
+
+
+def _machine() -> str:
+    cpu = next((line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
+                if line.startswith("model name")), platform.processor())
+    return f"{cpu}, {os.cpu_count()} cores"
+
+
+class Progress:
+    """One line per finished trial, with an ETA from this session's rate (a Ray Tune callback once wrapped)."""
+
+    def __init__(self, total: int, done_before: int, headline: str):
+        self.total, self.done, self.headline = total, done_before, headline
+        self.done_here = 0
+        self.started = time.monotonic()
+
+    def finished(self, name: str, result: dict[str, Any]) -> str:
+        self.done += 1
+        self.done_here += 1
+        elapsed = time.monotonic() - self.started
+        eta = (self.total - self.done) * elapsed / self.done_here
+        key = next((k for k in result if k.startswith("greedy_") and self.headline in k), None)
+        greedy = f", greedy {key[len('greedy_'):]} {result[key]:.3g}" if key else ""
+        return (f"trial {self.done}/{self.total} done: {name}: {result.get('episodes', '?')} episodes, "
+                f"{result.get('env_steps', '?')} env steps in {result.get('trial_wall_s', math.nan):.0f} s{greedy}; "
+                f"ETA {format_duration(eta if self.done < self.total else 0.0)}")
+
+
+def _tune_callback(progress: Progress) -> Any:
+    from ray import tune
+
+    class ProgressCallback(tune.Callback):
+        def on_trial_result(self, iteration: int, trials: list[Any], trial: Any, result: dict[str, Any],
+                            **info: Any) -> None:
+            _log(progress.finished(trial.config["job"]["name"], result))
+
+        def on_trial_recover(self, iteration: int, trials: list[Any], trial: Any, **info: Any) -> None:
+            _log(f"trial {trial.config['job']['name']} failed; it runs again from its checkpoint "
+                 f"(logs: {trial.config['job']['sweep_dir']}/logs/{trial.config['job']['name']})")
+
+        def on_trial_error(self, iteration: int, trials: list[Any], trial: Any, **info: Any) -> None:
+            _log(f"trial {trial.config['job']['name']} failed for good (max_failures reached); its error: "
+                 f"{trial.error_file}")
+    return ProgressCallback()
+
+
+def _jobs(spec: SweepSpec, sweep_dir: Path, trials: Sequence[Trial]) -> list[TrialJob]:
+    return [TrialJob(name=t.name, seed=t.seed, params={k: t.changes[k] for k in spec.varied},
+                     sweep_dir=str(sweep_dir), package=spec.package, task=spec.task.name, agent=spec.agent.name,
+                     results_name=spec.agent.results_name(spec.task), checkpoint_name=spec.agent.checkpoint_name,
+                     eval_episodes=spec.eval_episodes, eval_seed=spec.eval_seed) for t in trials]
+
+
+def _open_sweep(spec: SweepSpec) -> tuple[SweepSpec, Path]:
+    """The sweep's folder, made (new) or checked (resume:=true; the saved arguments define the trials)."""
+    root = Path(spec.results_dir).expanduser().resolve() / spec.agent.results_name(spec.task)
+    if spec.resume:
+        if not spec.name:
+            raise SweepError("resume:=true needs the sweep's name:= (the folder under "
+                             f"{root})")
+        sweep_dir = root / spec.name
+        saved = yaml.safe_load((sweep_dir / "sweep.yaml").read_text()) if (sweep_dir / "sweep.yaml").is_file() \
+            else None
+        if not isinstance(saved, dict) or not isinstance(saved.get("args"), list):
+            raise SweepError(f"no sweep {spec.name!r} to resume under {root} (no {sweep_dir / 'sweep.yaml'})")
+        given = list(spec.grid_args)
+        if given != saved["args"] and given != [spec.robot]:
+            raise SweepError(f"sweep {spec.name} was started with {' '.join(saved['args'])}; resume:=true continues "
+                             f"those trials (give just name:= and resume:=true)")
+        options = [f"{k}:={v}" for k, v in (("name", spec.name), ("resume", "true"), ("cluster", spec.cluster),
+                                            ("concurrent", spec.concurrent), ("results_dir", spec.results_dir)) if v]
+        return parse_sweep([*saved["args"], *options]), sweep_dir
+    name = spec.name or datetime.datetime.now(datetime.UTC).strftime("%Y%m%d-%H%M%S")
+    sweep_dir = root / name
+    try:
+        sweep_dir.mkdir(parents=True)
+    except FileExistsError:
+        raise SweepError(f"a sweep {sweep_dir} exists already: resume:=true name:={name} continues it; a new sweep "
+                         f"needs another name:=") from None
+    spec = dataclasses.replace(spec, name=name)
+    trials = spec.trials()
+    (sweep_dir / "configs").mkdir()
+    for trial in trials:
+        write_text_atomic(sweep_dir / "configs" / f"{trial.name}.yaml",
+                          yaml.safe_dump(trial_config(spec.task, trial), sort_keys=False))
+    (sweep_dir / RESULTS_LINK).mkdir()
+    (sweep_dir / RESULTS_LINK / spec.agent.results_name(spec.task)).symlink_to("..")
+    write_text_atomic(sweep_dir / "sweep.yaml", yaml.safe_dump(
+        {"args": list(spec.grid_args), "task": spec.task.env_id, "agent": spec.agent.name,
+         "seeds": list(spec.seeds), "params": {k: list(v) for k, v in spec.grid},
+         "trials": [t.name for t in trials]}, sort_keys=False))
+    return spec, sweep_dir
+
+
+def _start_ray(spec: SweepSpec, temp_dir: str) -> None:
+    """Join `spec.cluster` (robot_rl.cluster.connect: "ray" or HOST:PORT), else start Ray on this machine."""
+    if spec.cluster:
+        from robot_rl.cluster import connect
+        connect(spec.cluster)
+        return
+    import ray
+    ray.init(address="local", num_cpus=spec.concurrent or None, include_dashboard=False, _temp_dir=temp_dir,
+             _node_ip_address="127.0.0.1", object_store_memory=100 * 2**20, log_to_driver=False,
+             logging_level=logging.WARNING)
+
+
+def _tune(spec: SweepSpec, sweep_dir: Path, jobs: list[TrialJob], progress: Progress) -> list[str]:
+    """Run the jobs as Tune trials; returns the names of those that failed for good."""
+    from ray import tune
+    sessions = sweep_dir / "tune"
+    session = f"session-{len(list(sessions.glob('session-*'))) + 1}" if sessions.is_dir() else "session-1"
+    tuner = tune.Tuner(
+        tune.with_resources(run_trial, {"cpu": 1}),
+        param_space={"job": tune.grid_search([dataclasses.asdict(job) for job in jobs])},
+        tune_config=tune.TuneConfig(max_concurrent_trials=spec.concurrent, reuse_actors=False,
+                                    trial_name_creator=lambda trial: trial.config["job"]["name"],
+                                    trial_dirname_creator=lambda trial: trial.config["job"]["name"]),
+        run_config=tune.RunConfig(name=session, storage_path=str(sessions), verbose=0,
+                                  failure_config=tune.FailureConfig(max_failures=spec.max_failures),
+                                  callbacks=[_tune_callback(progress)]))
+    grid = tuner.fit()
+    results = (grid[i] for i in range(len(grid)))
+    return [result.config["job"]["name"] for result in results if result.error is not None and result.config]
+
+
+def collect_results(spec: SweepSpec, jobs: Sequence[TrialJob]) -> list[TrialResult]:
+    """The table's rows: every trial that is done, from its run folder."""
+    results = []
+    for job in jobs:
+        if not trial_done(job):
+            continue
+        summary = _read_json(job.run_dir / "summary.json") or {}
+        evaluation = _read_json(job.run_dir / "evaluation.json") or {}
+        records = RunDirectory(job.run_dir, job.checkpoint_name).read_episodes()
+        results.append(TrialResult(
+            name=job.name, seed=job.seed, params={k: format_value(v) for k, v in job.params.items()},
+            episodes=summary["episodes"], env_steps=summary["env_steps"], wall_time_s=summary["wall_time_s"],
+            train=summary.get("metrics_last_100", {}), greedy=evaluation.get("greedy", {}),
+            random=evaluation.get("random", {}),
+            curve=[float(r.metrics.get(spec.task.headline_metric, math.nan)) for r in records]))
+    return results
+
+
+def write_outputs(spec: SweepSpec, sweep_dir: Path, jobs: Sequence[TrialJob]) -> str:
+    results = collect_results(spec, jobs)
+    constant = [f"{k}:={','.join(map(format_value, v))}" for k, v in spec.grid if len(v) == 1]
+    greedy_key = _greedy_key(spec.task.headline_metric, results[0].greedy if results else {})
+    title = (f"Sweep {spec.name}: {spec.task.env_id}, agent {spec.agent.name}, {len(results)} of {len(jobs)} "
+             f"trials{' (' + ', '.join(constant) + ')' if constant else ''}; training metrics over the last 100 "
+             f"episodes; greedy and random: {spec.eval_episodes} episodes each, direct backend, evaluation seed "
+             f"{spec.eval_seed}. `./ws sweep {' '.join(spec.grid_args)} name:={spec.name}`; {_machine()}, "
+             f"{datetime.datetime.now().astimezone().isoformat(timespec='seconds')}")
+    text = write_table(results, title, greedy_key, sweep_dir / "sweep.md", sweep_dir / "sweep.csv")
+    plot_curves(results, spec.task.headline_metric, f"sweep {spec.name}: {spec.task.env_id}, every trial and the mean",
+                sweep_dir / "learning_curves.png")
+    return text
+
+
+def main(argv: Sequence[str]) -> int:
+    if any(arg in ("-h", "--help") for arg in argv):
+        print(__doc__)
+        return 0
+    try:
+        spec, sweep_dir = _open_sweep(parse_sweep(argv))
+    except (SweepError, OSError) as error:
+        _log(f"error: {error}")
+        return 2
+    jobs = _jobs(spec, sweep_dir, spec.trials())
+    todo = [job for job in jobs if not trial_done(job)]
+    _log(f"sweep {spec.name}: {len(jobs)} trials ({len(jobs) - len(todo)} done before) in {sweep_dir}")
+    failed: list[str] = []
+    if todo:
+        os.environ["RAY_USAGE_STATS_ENABLED"] = "0"
+        os.environ.setdefault("RAY_AIR_NEW_OUTPUT", "0")  # with verbose=0: no tables from Tune, our lines only
+        import ray
+        temp_dir = tempfile.mkdtemp(prefix="ray", dir="/tmp")  # short: Ray's socket paths must fit 107 bytes
+        try:
+            _start_ray(spec, temp_dir)
+            spec = dataclasses.replace(spec, concurrent=spec.concurrent or int(ray.cluster_resources().get("CPU", 1)))
+            _log(f"at most {spec.concurrent} trials at once, each on one CPU of {ray.cluster_resources().get('CPU')}")
+            progress = Progress(len(jobs), len(jobs) - len(todo), spec.task.headline_metric)
+            failed = _tune(spec, sweep_dir, todo, progress)
+        except ClusterError as error:
+            _log(f"error: {error}")
+            return 1
+        finally:
+            ray.shutdown()
+            shutil.rmtree(temp_dir, ignore_errors=True)
+    print(write_outputs(spec, sweep_dir, jobs))
+    not_done = [job.name for job in jobs if not trial_done(job)]
+    if failed:
+        _log(f"{len(failed)} trial(s) failed: {', '.join(failed)} (logs in {sweep_dir / 'logs'}); the table has the "
+             f"others; ./ws sweep {spec.robot} name:={spec.name} resume:=true tries them again")
+        return 1
+    if not_done:
+        _log(f"interrupted with {len(not_done)} trial(s) not done; continue with ./ws sweep {spec.robot} "
+             f"name:={spec.name} resume:=true")
+        return INTERRUPTED
+    _log(f"sweep {spec.name} done: {sweep_dir / 'sweep.md'}, {sweep_dir / 'sweep.csv'}, "
+         f"{sweep_dir / 'learning_curves.png'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,219 @@
+"""What a sweep is made of: the grammar of `./ws sweep`'s arguments, its trials and their names (no Ray here).
+
+  ./ws sweep [ROBOT] [task:=T] [agent:=A] [seeds:=0-9] [NAME:=v1,v2 ...] [name:=SWEEP] [resume:=true]
+             [cluster:=ADDRESS] [concurrent:=N] [max_failures:=N] [eval_episodes:=N] [eval_seed:=S]
+             [results_dir:=DIR]
+
+`seeds:=` takes seeds and inclusive ranges separated by commas (`0-9`, `0,3,5`, `0-2,7`); default: the
+task config's seed. Any other NAME is a training parameter of the task (a field of its params dataclass,
+robot_rl.params), with one value or several separated by commas; each value is checked as the task's
+YAML is, and every combination too. The trials are every seed times every combination, in that order; a
+trial's name is `seed=S` followed by `NAME=VALUE` of each parameter given more than one value, e.g.
+`seed=3,alpha=0.2` (characters other than letters, digits and `._+=,-` become `_`). Anything wrong gives
+one line (SweepError) naming the argument.
+"""
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import itertools
+import re
+import typing
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from robot_rl.agents import DEFAULT_AGENT, AgentSpec, find_agent
+from robot_rl.params import MAX_SEED, ParamError, TaskParams, load_yaml_file, parse_scalar
+from robot_rl.task import TaskSpec, find_task
+
+ROBOTS = {"cube": "moving_cube_training", "hopper": "hopper_training"}  # as ./ws run names them
+DEFAULT_ROBOT = "cube"
+# The arguments that say how a sweep runs, not which trials it has: a resumed sweep may change them.
+RUN_OPTIONS = ("name", "resume", "cluster", "concurrent", "results_dir")
+OPTIONS = (*RUN_OPTIONS, "task", "agent", "seeds", "max_failures", "eval_episodes", "eval_seed")
+SWEEP_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
+UNSAFE = re.compile(r"[^A-Za-z0-9._+=,-]")
+SCALARS = (bool, int, float, str)
+
+
+class SweepError(ValueError):
+    """A sweep argument that cannot be used; str() is one line naming it."""
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One training run of a sweep: its name, its seed and every parameter the sweep sets besides the seed."""
+
+    name: str
+    seed: int
+    changes: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    robot: str
+    package: str
+    task: TaskSpec[Any]
+    agent: AgentSpec
+    seeds: tuple[int, ...]
+    grid: tuple[tuple[str, tuple[Any, ...]], ...]  # (parameter, its values) in the order given
+    grid_args: tuple[str, ...]                      # the arguments that define the trials, as given
+    name: str = ""                                  # empty: the driver names the sweep by the UTC time
+    resume: bool = False
+    cluster: str = ""                               # empty: a local Ray on this machine
+    concurrent: int = 0                             # trials at once; 0: one per CPU of the Ray cluster
+    max_failures: int = 2
+    eval_episodes: int = 20
+    eval_seed: int = 0
+    results_dir: str = "training_results"
+
+    @property
+    def varied(self) -> tuple[str, ...]:
+        """The parameters given more than one value (they name the trials)."""
+        return tuple(name for name, values in self.grid if len(values) > 1)
+
+    def trials(self) -> list[Trial]:
+        """Every seed times every combination of the grid, each combination checked as a whole."""
+        defaults = self.task.default_params()
+        names = [name for name, _ in self.grid]
+        trials = []
+        for seed in self.seeds:
+            for combination in itertools.product(*(values for _, values in self.grid)):
+                changes = dict(zip(names, combination))
+                label = ", ".join(f"{k}:={format_value(v)}" for k, v in changes.items()) or f"seeds:={seed}"
+                try:
+                    defaults.with_changes(label, seed=seed, **changes)
+                except ParamError as error:
+                    raise SweepError(str(error)) from None
+                trials.append(Trial(trial_name(seed, {k: changes[k] for k in self.varied}), seed, changes))
+        return trials
+
+
+def format_value(value: Any) -> str:
+    """A parameter value as the arguments write it (true/false, 0.2, 1e-05, words)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+def trial_name(seed: int, varied: dict[str, Any]) -> str:
+    """`seed=S,NAME=VALUE,...`: readable and safe as a folder name."""
+    parts = [f"seed={seed}", *(f"{name}={format_value(value)}" for name, value in varied.items())]
+    return UNSAFE.sub("_", ",".join(parts))
+
+
+def parse_seeds(text: str) -> tuple[int, ...]:
+    """`0-9`, `0,3,5`, `0-2,7`: the seeds, in order, each once."""
+    seeds: list[int] = []
+    for item in text.split(","):
+        match = re.fullmatch(r"\s*(\d+)\s*(?:-\s*(\d+)\s*)?", item)
+        if not match:
+            raise SweepError(f"seeds:={text}: {item.strip()!r} is not a seed or a range FIRST-LAST of seeds "
+                             f"(e.g. seeds:=0-9 or seeds:=0,3,5)")
+        first, last = int(match[1]), int(match[2] if match[2] is not None else match[1])
+        if last < first:
+            raise SweepError(f"seeds:={text}: the range {item.strip()} ends before it starts")
+        if last > MAX_SEED:
+            raise SweepError(f"seeds:={text}: seeds go from 0 to {MAX_SEED}")
+        seeds.extend(range(first, last + 1))
+    duplicates = sorted({s for s in seeds if seeds.count(s) > 1})
+    if duplicates:
+        raise SweepError(f"seeds:={text}: seed {duplicates[0]} is given twice")
+    return tuple(seeds)
+
+
+def sweepable_params(task: TaskSpec[Any]) -> tuple[str, ...]:
+    """The task's training parameters a sweep can set: its params dataclass's plain fields (not seed)."""
+    hints = typing.get_type_hints(task.params_type)
+    return tuple(f.name for f in dataclasses.fields(task.params_type)
+                 if hints[f.name] in SCALARS and f.name != "seed")
+
+
+def parse_values(name: str, text: str, defaults: TaskParams) -> tuple[Any, ...]:
+    """The values of `name:=text` (comma-separated), each checked as the task's YAML is."""
+    values = []
+    for item in text.split(","):
+        if not item.strip():
+            raise SweepError(f"{name}:={text}: an empty value (write the values separated by commas, e.g. "
+                             f"{name}:=0.1,0.2)")
+        try:
+            checked = defaults.with_changes(f"{name}:={text}", **{name: parse_scalar(item.strip())})
+        except ParamError as error:
+            raise SweepError(str(error)) from None
+        value = getattr(checked, name)
+        if value in values:
+            raise SweepError(f"{name}:={text}: the value {format_value(value)} is given twice")
+        values.append(value)
+    return tuple(values)
+
+
+def _integer(name: str, text: str, low: int) -> int:
+    value = parse_scalar(text)
+    if not isinstance(value, int) or isinstance(value, bool) or value < low:
+        raise SweepError(f"{name}:={text}: expected a whole number >= {low}")
+    return value
+
+
+def parse_sweep(argv: Sequence[str]) -> SweepSpec:
+    """The sweep `argv` (the arguments of ./ws sweep) asks for; SweepError names what is wrong."""
+    args = list(argv)
+    robot = args.pop(0) if args and ":=" not in args[0] else DEFAULT_ROBOT
+    if robot not in ROBOTS:
+        raise SweepError(f"unknown robot {robot!r} (known: {', '.join(ROBOTS)})")
+    package = ROBOTS[robot]
+    given: dict[str, str] = {}
+    for arg in args:
+        name, sep, value = arg.partition(":=")
+        if not sep or not name:
+            raise SweepError(f"{arg!r} is not an argument NAME:=VALUE (see ./ws sweep --help)")
+        if name in given:
+            raise SweepError(f"{name}:= is given twice")
+        given[name] = value
+    tasks = list(importlib.import_module(package).TASKS)
+    try:
+        task = find_task(tasks, given.get("task", tasks[0].name))
+        agent = find_agent(given.get("agent", DEFAULT_AGENT))
+    except ParamError as error:
+        raise SweepError(str(error)) from None
+    defaults = task.default_params()
+    known = sweepable_params(task)
+    grid = []
+    for name, text in given.items():
+        if name in OPTIONS:
+            continue
+        if name == "seed":
+            raise SweepError("seed:= is not a sweep argument: give the seeds with seeds:= (e.g. seeds:=0-4)")
+        if name not in known:
+            raise SweepError(f"unknown parameter {name!r}: not a training parameter of task {task.name} "
+                             f"(known: {', '.join(known)}) nor a sweep argument ({', '.join(OPTIONS)})")
+        grid.append((name, parse_values(name, text, defaults)))
+    name = given.get("name", "")
+    if name and not SWEEP_NAME.fullmatch(name):
+        raise SweepError(f"name:={name}: a sweep's name is letters, digits and ._- (not starting with . or -)")
+    resume = parse_scalar(given.get("resume", "false"))
+    if not isinstance(resume, bool):
+        raise SweepError(f"resume:={given['resume']}: expected true or false")
+    spec = SweepSpec(
+        robot=robot, package=package, task=task, agent=agent,
+        seeds=parse_seeds(given["seeds"]) if "seeds" in given else (defaults.seed,), grid=tuple(grid),
+        grid_args=(robot, *(arg for arg in args if arg.partition(":=")[0] not in RUN_OPTIONS)),
+        name=name, resume=resume, cluster=given.get("cluster", ""),
+        concurrent=_integer("concurrent", given["concurrent"], 1) if "concurrent" in given else 0,
+        max_failures=_integer("max_failures", given.get("max_failures", "2"), 0),
+        eval_episodes=_integer("eval_episodes", given.get("eval_episodes", "20"), 1),
+        eval_seed=_integer("eval_seed", given.get("eval_seed", "0"), 0),
+        results_dir=given.get("results_dir", "training_results"))
+    spec.trials()  # every combination checked now, before anything runs
+    return spec
+
+
+def trial_config(task: TaskSpec[Any], trial: Trial) -> dict[str, Any]:
+    """The task's default YAML document with the trial's seed and parameters in it (a config:= for main.launch)."""
+    document = load_yaml_file(task.config_path)
+    target = document
+    for part in task.params_namespace.strip("/").split("/"):
+        if part:
+            target = target[part]
+    target.update(trial.changes, seed=trial.seed)
+    return document
