@@ -45,10 +45,12 @@ def set_pdeathsig(sig: int = signal.SIGTERM) -> None:
 
 
 def _prepare_child() -> None:
-    """In a child before exec: SIGTERM when its parent dies, and SIGINT's default action (a vector env's
-    worker ignores SIGINT, and an ignored signal stays ignored across exec)."""
+    """In a child before exec: SIGTERM when its parent dies, SIGINT's default action (a vector env's worker
+    ignores SIGINT, and an ignored signal stays ignored across exec) and no signal blocked (a Ray worker blocks
+    some, and a blocked signal stays blocked across exec: close()'s SIGINT would wait for its SIGKILL)."""
     set_pdeathsig()
     signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_SETMASK, set())
 
 
 def stop_process(process: subprocess.Popen[Any], timeout: float = STOP_TIMEOUT, group: bool = False) -> None:

@@ -45,7 +45,9 @@ class LoopbackCluster:
         self.token = ray_cluster.token_path(self.folder)
         self.token.write_text(TOKEN)
         self.token.chmod(0o600)
-        self.env = ray_cluster.ray_environment(self.token, {**os.environ, MARK_VARIABLE: self.mark})
+        (self.folder / "tmp").mkdir(exist_ok=True)  # the workers' temporary folders (a killed one leaves its own)
+        self.env = ray_cluster.ray_environment(self.token, {**os.environ, MARK_VARIABLE: self.mark,
+                                                            "TMPDIR": str(self.folder / "tmp")})
         self.processes_started: list[subprocess.Popen[bytes]] = []
         self.temp_dirs: list[Path] = []
         self.address = ""
