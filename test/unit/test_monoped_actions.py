@@ -162,7 +162,8 @@ def test_a_vector_env_steps_continuous_targets_and_refuses_bad_ones():
         first, _ = env.reset(seed=0)
         observations, *_ = env.step(np.array([[0.0, 0.0, 0.5], [0.0, 0.0, -0.5]], np.float32))
         assert observations.shape == first.shape and observations[0, 7] > observations[1, 7]  # the knees
-        for actions, expected in (([[0.0, 0.0, 0.0]], "3 action values for 2 envs of Box"), ([[0, 0, 0], [0, 0, 2.0]], "of env 1")):
+        for actions, expected in (([[0.0, 0.0, 0.0]], "3 action values for 2 envs of Box"),
+                                  ([[0, 0, 0], [0, 0, 2.0]], "of env 1")):
             with pytest.raises(ValueError, match=expected):
                 env.step(np.array(actions, np.float32))
     finally:
