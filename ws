@@ -18,6 +18,8 @@
 #   ./ws sweep [cube|hopper] [seeds:=0-9] [NAME:=V1,V2 ...] [name:=SWEEP] [resume:=true] [cluster:=ray|ADDRESS]
 #                               many training runs on Ray Tune, a table and a plot (installs requirements-distributed.txt)
 #   ./ws cluster start|join ADDRESS|stop|status  this machine's Ray node (installs requirements-distributed.txt)
+#   ./ws demo [cube|hopper] [VIDEO.mp4]  the shipped trained policy (<package>/policies/demo) plays one
+#                               episode, recorded to VIDEO.mp4 (default ./demo_<robot>.mp4), then evaluate.py's JSON
 #   ./ws setup [deep|distributed]  only the set-up (deep: also torch and stable-baselines3; distributed: also Ray)
 #   ./ws help                   this text and the arguments of every launch file ./ws run starts
 set -euo pipefail
@@ -146,7 +148,7 @@ launch_of() {
 }
 
 usage() {
-  sed -n '2,23p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,/^set -euo pipefail$/{/^#/p}' "$0" | sed 's/^# \{0,1\}//'
 }
 
 # The usage, then each training launch file's arguments, as roslaunch itself lists them.
@@ -310,6 +312,20 @@ case "$command" in
     ensure_requirements requirements-distributed.txt
     enter_environment
     exec python -m robot_rl.cluster "$@" ;;
+  demo)
+    robot=hopper
+    if [ $# -gt 0 ] && [[ "$1" != *.mp4 ]]; then robot="$1"; shift; fi
+    case "$robot" in
+      cube) package=moving_cube_training ;;
+      hopper) package=hopper_training ;;
+      *) die "unknown robot '$robot' (known: cube, hopper)" ;;
+    esac
+    [ $# -le 1 ] || die "usage: ./ws demo [cube|hopper] [VIDEO.mp4]"
+    video="$(realpath -m "${1:-demo_$robot.mp4}")"
+    setup
+    enter_environment
+    exec rosrun "$package" evaluate.py --run "$ROOT/$package/policies/demo" --episodes 1 --video "$video" \
+      --video-episodes 1 ;;
   python)
     setup
     enter_environment

@@ -27,7 +27,8 @@ from workspace_tools.sweep_spec import parse_sweep
 README = REPO / "README.md"
 PAGES = [README, REPO / "CHANGELOG.md", REPO / "pybullet_sim" / "README.md", *sorted((REPO / "docs").glob("*.md"))]
 README_MAX_LINES = 250
-WS_COMMANDS = {"run", "help", "python", "exec", "test", "lint", "bench", "rviz", "plot", "setup", "cluster", "sweep"}
+WS_COMMANDS = {"run", "help", "python", "exec", "test", "lint", "bench", "rviz", "plot", "setup", "cluster", "sweep",
+               "demo"}
 ROBOT_LAUNCH = {"cube": ("moving_cube_training", "main.launch"), "hopper": ("hopper_training", "main.launch")}
 SIM_LAUNCH = {"cube": ("pybullet_sim", "cube_sim.launch"), "hopper": ("pybullet_sim", "hopper_sim.launch")}
 REWARD_NAMESPACES = {"/moving_cube", "/monoped"}
@@ -117,6 +118,10 @@ def check_ws(words: list[str]) -> None:
         assert first in ("start", "join", "stop", "status"), f"./ws cluster has no command {first}"
     elif command == "sweep" and "--help" not in rest:
         parse_sweep(rest)  # the sweep's grammar: SweepError names a bad argument
+    elif command == "demo":
+        robot = first if first and not first.endswith(".mp4") else "hopper"
+        package = ROBOT_LAUNCH[robot][0]
+        assert (REPO / package / "policies" / "demo").is_dir(), f"./ws demo {robot}: {package} ships no policies/demo"
 
 
 def check_command(words: list[str]) -> None:
