@@ -35,6 +35,9 @@ Sections (--sections, default all):
   against pipe workers, at N = 1 and 2, over ROS, on a one-node Ray cluster of this machine's cores started
   for each repetition (workspace_tools.ray_cluster), its daemons running during both; the ratio Ray / pipe.
   At N = 1 the difference is a Ray actor call's round trip per env step.
+- sweeps: `./ws sweep cube` (workspace_tools.sweep, a private local Ray) of one trial against two trials
+  run at once, each trial SWEEP_EPISODES cube training episodes and SWEEP_EVAL_EPISODES evaluation
+  episodes; trials per hour of wall time, Ray's start and Tune's overhead included; the ratio two / one.
 
 The Gazebo-style step is the tutorials' (robot_rl.backends.GazeboStyleBackend under a normal env): unpause,
 publish the command, wait running_step of sim time (on /clock, throttled to 100 Hz of wall time as
@@ -67,7 +70,8 @@ from robot_rl.params import TaskParams
 from robot_rl.task import TaskSpec, make_env
 from workspace_tools.processes import Processes, RosMaster, launch_args
 
-SECTIONS = ("lockstep", "scaling", "deep", "gazebo", "training", "distributed")
+SECTIONS = ("lockstep", "scaling", "deep", "gazebo", "training", "distributed", "sweeps")
+SWEEP_EPISODES, SWEEP_EVAL_EPISODES = 400, 5
 PERFORMANCE_PAGE = Path(__file__).resolve().parents[2] / "docs" / "performance.md"
 SCALING_ENVS = (1, 2, 4)
 DISTRIBUTED_ENVS = (1, 2)
@@ -339,6 +343,18 @@ def _cube_training_wall_time(log_dir: Path, episodes: int) -> float:
     return json.loads((results / "moving_cube" / "latest" / "summary.json").read_text())["wall_time_s"]
 
 
+def _sweep_wall_time(folder: Path, seeds: str) -> float:
+    """Wall seconds of `./ws sweep cube seeds:=SEEDS` (every trial at once), from its start to its exit."""
+    folder.mkdir(parents=True)
+    started = time.monotonic()
+    result = subprocess.run([sys.executable, "-m", "workspace_tools.sweep", "cube", f"seeds:={seeds}",
+                             f"nepisodes:={SWEEP_EPISODES}", f"eval_episodes:={SWEEP_EVAL_EPISODES}", "concurrent:=2",
+                             "name:=bench", f"results_dir:={folder}"], capture_output=True, text=True, timeout=1800)
+    if result.returncode != 0:
+        raise RuntimeError(f"sweep seeds:={seeds} failed:\n{result.stdout[-3000:]}{result.stderr[-3000:]}")
+    return time.monotonic() - started
+
+
 def _machine() -> str:
     import os
     from importlib.metadata import version
@@ -434,6 +450,7 @@ def _distributed_rep(folder: Path, rep: int, robot: str, steps: int, running_ste
 def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sections: set[str]) -> dict:
     samples: dict[str, dict[str, list[float]]] = {robot: defaultdict(list) for robot in ROBOTS}
     cube_training = []
+    sweeps: list[tuple[float, float]] = []  # trials per hour: one trial alone, two at once
     with tempfile.TemporaryDirectory(prefix="bench-") as tmp_dir:
         tmp = Path(tmp_dir)
         for rep in range(reps):
@@ -442,6 +459,11 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
             if "training" in sections:
                 cube_training.append(_cube_training_wall_time(tmp / f"{rep}-training", 100))
                 _log(f"rep {rep + 1}/{reps}: 100 cube training episodes in {cube_training[-1]:.1f} s")
+            if "sweeps" in sections:
+                one, two = (_sweep_wall_time(tmp / f"{rep}-sweep-{n}", seeds) for n, seeds in ((1, "0"), (2, "0-1")))
+                sweeps.append((3600 / one, 2 * 3600 / two))
+                _log(f"rep {rep + 1}/{reps}: sweeps: 1 trial in {one:.0f} s, 2 at once in {two:.0f} s: "
+                     f"{sweeps[-1][1] / sweeps[-1][0]:.2f}x the trials per hour")
     median = statistics.median
     report: dict[str, Any] = {
         "machine": _machine(), "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
@@ -486,6 +508,12 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
         report[robot] = r
     if "training" in sections:
         report["cube_100_episodes_wall_s"] = median(cube_training)
+    if "sweeps" in sections:
+        report["sweeps"] = {"episodes_per_trial": SWEEP_EPISODES,
+                            "trials_per_hour": {"1": median(one for one, _ in sweeps),
+                                                "2": median(two for _, two in sweeps)},
+                            "ratio_2_to_1": median(two / one for one, two in sweeps),
+                            "per_repetition": [list(pair) for pair in sweeps]}
     output.write_text(json.dumps(report, indent=2) + "\n")
     return report
 
@@ -577,6 +605,14 @@ def table_rows(report: dict) -> list[list[str]]:
     return rows
 
 
+def sweeps_line(sweeps: dict) -> str:
+    """The sweeps section in one sentence."""
+    per_hour = sweeps["trials_per_hour"]
+    return (f"Sweeps (`./ws sweep cube`, {sweeps['episodes_per_trial']} training episodes a trial, Ray's start "
+            f"included): one trial alone {per_hour['1']:.0f} trials/h, two at once {per_hour['2']:.0f} trials/h, "
+            f"{sweeps['ratio_2_to_1']:.2f}x.")
+
+
 def print_table(report: dict) -> None:
     print(f"\n{report['machine']}\n{report['date']}, median of {report['repetitions']} repetitions, load average "
           f"{report['load_average_at_end']:.2f} at the end\n")
@@ -586,6 +622,8 @@ def print_table(report: dict) -> None:
         print(f"| {label:52} | " + " | ".join(f"{cell:>9}" for cell in cells) + " |")
     if "cube_100_episodes_wall_s" in report:
         print(f"cube: 100 training episodes over ROS in {report['cube_100_episodes_wall_s']:.1f} s")
+    if "sweeps" in report:
+        print(sweeps_line(report["sweeps"]))
     for line in ceiling_warnings(report):
         print(f"\nnote: {line}")
 
@@ -624,6 +662,8 @@ def markdown(report: dict, command: str) -> str:
               for label, *cells in table_rows(report) if any(cells)]
     if "cube_100_episodes_wall_s" in report:
         lines += ["", f"100 episodes of cube training over ROS took {report['cube_100_episodes_wall_s']:.1f} s."]
+    if "sweeps" in report:
+        lines += ["", sweeps_line(report["sweeps"])]
     warnings = ceiling_warnings(report)
     if warnings:
         lines += ["", "Note: the machine was loaded during this run, so its figures are lower than on two free "
