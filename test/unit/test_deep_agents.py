@@ -1,8 +1,10 @@
 """Stable-Baselines3 on our envs without a master (direct backend): SB3's check_env on every task, the
 VecEnv contract of RobotVecEnv (N worker processes), DQN and PPO training that writes every results file,
-resume from model.zip's weights and agent.json's counters, and evaluation of a deep run."""
+resume from model.zip's weights and agent.json's counters, evaluation of a deep run, and which agent
+may act in which action space (SAC: Box only, DQN: Discrete only)."""
 import json
 
+import gymnasium
 import numpy as np
 import pytest
 from stable_baselines3 import DQN
@@ -13,7 +15,7 @@ from hopper_training import TASKS as HOPPER_TASKS
 from moving_cube_training import TASKS as CUBE_TASKS
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
 from robot_rl.agents import find_agent
-from robot_rl.deep import DeepTrainer, EpisodeSchedule, build_model, make_vec_env
+from robot_rl.deep import DeepPolicy, DeepTrainer, EpisodeSchedule, build_model, make_vec_env
 from robot_rl.evaluation import TrainedRun, evaluate
 from robot_rl.ledger import TrainingHooks
 from robot_rl.params import ParamError
@@ -258,3 +260,32 @@ def test_a_buffer_larger_than_the_memory_is_refused_in_one_line(tmp_path):
             DeepTrainer(env, ONE_DISK_WALK, params, find_agent("dqn"), agent_params, run)
     finally:
         env.close()
+
+
+@pytest.mark.parametrize(("agent", "env_id", "expected"), [
+    ("sac", None, r"^agent sac on MovingCubeOneDiskWalk-v0: SAC needs Box \(continuous\) actions, the task has "
+                  r"Discrete\(5\) \(try agent:=dqn or ppo, or a task with continuous actions\)$"),
+    ("dqn", "Pendulum-v1", r"^agent dqn on MovingCubeOneDiskWalk-v0: DQN needs Discrete actions, the task has "
+                           r"Box\(-2.0, 2.0, \(1,\), float32\) \(try agent:=sac or ppo\)$"),
+])
+def test_an_agent_that_cannot_act_in_the_task_s_space_is_refused_before_any_file(tmp_path, agent, env_id, expected):
+    params = cube_params(nepisodes=2)
+    env = gymnasium.make(env_id) if env_id else make_env(ONE_DISK_WALK, params=params, backend="direct")
+    run = RunDirectory(tmp_path, "refused")
+    try:
+        with pytest.raises(ParamError, match=expected):
+            DeepTrainer(env, ONE_DISK_WALK, params, find_agent(agent), find_agent(agent).load_params(), run)
+    finally:
+        env.close()
+    assert not run.path.exists() or not any(run.path.iterdir())
+
+
+def test_sac_learns_on_a_box_space_and_its_greedy_action_is_an_array_in_the_space():
+    env = gymnasium.make("Pendulum-v1")
+    params = find_agent("sac").load_params().with_changes("test", learning_starts=20, batch_size=16)
+    model = build_model(params, env, 0.99, 0)
+    assert model.ent_coef == "auto_0.1", "learn_ent_coef: SB3's automatic entropy coefficient from ent_coef"
+    model.learn(total_timesteps=40)
+    action = DeepPolicy(model)(env.reset(seed=0)[0])
+    assert isinstance(action, np.ndarray) and action.dtype == np.float32 and env.action_space.contains(action)
+    env.close()

@@ -5,7 +5,7 @@ import dataclasses
 import pytest
 from test_monoped import readings
 
-from hopper_training.hop_metrics import MIN_FLIGHT_S, HopTracker, apex_of_flight
+from hopper_training.hop_metrics import MIN_FLIGHT_S, HopTracker, fit_flight
 from hopper_training.monoped_env import STAY_UP, MonopedEnv, monoped_metrics
 from robot_rl.task import Episode
 
@@ -36,9 +36,9 @@ def ballistic(steps, top_rise, z0=0.88):
 def test_apex_of_a_noise_free_arc_is_its_top_not_the_highest_sample():
     times = [0.02 * k for k in range(10)]
     heights = [1.0 + 1.0 * t - G * t * t / 2 for t in times]
-    assert apex_of_flight(times, heights) == pytest.approx(1.0 + 1.0 / (2 * G))
+    assert fit_flight(times, heights) == pytest.approx((1.0 + 1.0 / (2 * G), 1.0))
     rising = [(t, 1.0 + 3.0 * t - G * t * t / 2) for t in times[:3]]  # the top is after the samples
-    assert apex_of_flight(*zip(*rising)) == pytest.approx(rising[-1][1])
+    assert fit_flight(*zip(*rising))[0] == pytest.approx(rising[-1][1])
 
 
 def test_flights_count_as_hops_only_from_contact_to_contact_and_long_enough():
@@ -49,6 +49,12 @@ def test_flights_count_as_hops_only_from_contact_to_contact_and_long_enough():
     assert tracker.hops == 2  # the short flight is a bounce; the last flight has not landed
     rise = (11 * DT) ** 2 * G / 8  # v^2 / 2g with v = g T / 2, T = 11 steps from lift-off to landing
     assert tracker.apex_height == pytest.approx(rise, abs=1e-9)
+
+
+def test_a_foot_off_the_ground_while_the_base_falls_is_no_hop():
+    stance = [(True, 0.0, 0.0, 0.88)] * 3
+    falling = [(False, 0.0, 0.0, 0.88 - 0.5 * G * (k * DT) ** 2) for k in range(1, 6)]
+    assert track(stance + falling + stance).hops == 0
 
 
 def test_a_flight_from_the_start_in_the_air_is_no_hop():
@@ -80,7 +86,7 @@ def test_the_env_puts_the_figures_in_info_and_the_metrics_read_them():
     for _ in range(6):
         *_, info = env.step(0)
     assert info["hops"] == 1
-    assert info["apex_height"] == pytest.approx(apex_of_flight([k * DT for k in range(2, 6)], heights) - 0.88)
+    assert info["apex_height"] == pytest.approx(fit_flight([k * DT for k in range(2, 6)], heights)[0] - 0.88)
     metrics = monoped_metrics(Episode(steps=6, return_=0.0, terminated=False, duration=0.12, info=info))
     assert metrics["hops"] == 1.0 and metrics["fell"] is False and metrics["upright_whole_horizon"] is True
     assert metrics["apex_height"] == info["apex_height"] and metrics["lateral_drift"] == 0.0

@@ -369,7 +369,7 @@ def test_min_height_must_be_below_max_height(min_height, max_height):
 def test_hop_rewards_velocity_along_x_on_top_of_the_stay_up_terms():
     backend = FakeBackend(readings(position=(0.0, 0.0, 1.0)),
                           script=[readings(position=(0.01, 0.0, 1.0)), readings(position=(0.005, 0.0, 1.0))])
-    env = MonopedHopEnv(backend=backend, params=params(HOP, running_step=0.02))
+    env = MonopedHopEnv(backend=backend, params=params(HOP, running_step=0.02, target_speed=10.0))
     env.reset()
     _, reward, _, _, info = env.step(0)
     weight = env.params.forward_reward_weight
@@ -379,6 +379,23 @@ def test_hop_rewards_velocity_along_x_on_top_of_the_stay_up_terms():
     _, _, _, _, info = env.step(0)
     assert info["reward_forward"] == pytest.approx(-weight * 0.005 / 0.02)
     assert info["x_travelled"] == pytest.approx(0.005)
+
+
+def test_hop_forward_reward_counts_the_velocity_up_to_the_target_speed():
+    backend = FakeBackend(readings(position=(0.0, 0.0, 1.0)),
+                          script=[readings(position=(0.02, 0.0, 1.0)), readings(position=(0.0, 0.0, 1.0))])
+    env = MonopedHopEnv(backend=backend, params=params(HOP, running_step=0.02, target_speed=0.4))
+    env.reset()
+    weight = env.params.forward_reward_weight
+    assert env.step(0)[4]["reward_forward"] == pytest.approx(weight * 0.4)   # 1 m/s, capped
+    assert env.step(0)[4]["reward_forward"] == pytest.approx(-weight * 1.0)  # backwards in full
+
+
+def test_the_hop_yaml_follows_hopper_v5():
+    p = HOP.default_params()
+    assert p.forward_reward_weight == p.alive_reward  # per m/s, as Hopper-v5's 1 against 1
+    assert p.target_speed == 0.4 and p.max_incl == 0.5
+    assert p.q_init == pytest.approx((p.alive_reward + p.forward_reward_weight * p.target_speed) / (1 - p.gamma))
 
 
 def test_hop_params_add_the_forward_weight():

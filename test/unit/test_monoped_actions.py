@@ -144,3 +144,47 @@ def test_gymnasiums_env_checker_passes_on_every_mode(task, mode, observation):
         check_env(env.unwrapped, skip_render_check=True)
     finally:
         env.close()
+
+
+def test_params_of_a_run_from_before_the_action_modes_keep_the_tutorials_rule():
+    values = STAY_UP.default_params().to_mapping()
+    for key in ("action_mode", "start_pose", "target_range", "observation", "initial_tilt"):
+        del values[key]
+    old = STAY_UP.params_type.from_mapping(values, "params.yaml")
+    assert old.action_mode == "tutorial" and (old.initial_tilt.low, old.initial_tilt.high) == (0.0, 0.0)
+
+
+def test_a_vector_env_steps_continuous_targets_and_refuses_bad_ones():
+    from robot_rl.vector import make_vector_env
+    p = STAY_UP.default_params().with_changes("test", action_mode="targets", nsteps=20)
+    env = make_vector_env(STAY_UP, 2, backend="direct", seed=0, params=p)
+    try:
+        first, _ = env.reset(seed=0)
+        observations, *_ = env.step(np.array([[0.0, 0.0, 0.5], [0.0, 0.0, -0.5]], np.float32))
+        assert observations.shape == first.shape and observations[0, 7] > observations[1, 7]  # the knees
+        for actions, expected in (([[0.0, 0.0, 0.0]], "3 action values for 2 envs of Box"), ([[0, 0, 0], [0, 0, 2.0]], "of env 1")):
+            with pytest.raises(ValueError, match=expected):
+                env.step(np.array(actions, np.float32))
+    finally:
+        env.close()
+
+
+def test_tabular_q_learning_refuses_continuous_actions(tmp_path):
+    from robot_rl.results import RunDirectory
+    from robot_rl.training import QLearningTrainer
+    p = STAY_UP.default_params().with_changes("test", action_mode="targets")
+    env, _ = make_env("targets")
+    run = RunDirectory.create(tmp_path, "monoped", p.to_mapping())
+    with pytest.raises(ValueError, match=r"tabular Q-learning needs Discrete actions, Monoped-v0 has Box"):
+        QLearningTrainer(env, STAY_UP, p, run)
+
+
+@pytest.mark.parametrize("observation", ["standard", "extended"])
+def test_stable_baselines3s_env_checker_passes_on_the_continuous_targets(observation):
+    env_checker = pytest.importorskip("stable_baselines3.common.env_checker", reason="./ws setup deep installs SB3")
+    p = STAY_UP.default_params().with_changes("test", action_mode="targets", observation=observation)
+    env = gymnasium.make(STAY_UP.env_id, backend="direct", params=p)
+    try:
+        env_checker.check_env(env.unwrapped, warn=False)
+    finally:
+        env.close()

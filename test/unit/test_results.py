@@ -4,6 +4,7 @@ import os
 
 import pytest
 import yaml
+from PIL import Image
 
 from robot_rl.qlearn import QLearn
 from robot_rl.results import EpisodeRecord, RunDirectory, aggregate, moving_average
@@ -120,6 +121,11 @@ def test_metric_columns_keep_yes_no_values(tmp_path):
         {"mean_y_distance": pytest.approx(0.625), "success_rate": 0.5}
     run.write_learning_curve("success")
     assert run.learning_curve_png.read_bytes().startswith(b"\x89PNG")
+    heights = []
+    for metrics in ((), ("success",), ("success", "y_distance")):
+        run.write_learning_curve(*metrics)
+        heights.append(Image.open(run.learning_curve_png).height)
+    assert heights == [620, 820, 1020]  # a panel (200 pixels) per metric below return, above epsilon
 
 
 def test_a_row_with_a_missing_column_is_reported(tmp_path):

@@ -8,6 +8,7 @@ import subprocess
 import sys
 import time
 
+import gymnasium
 import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode
@@ -15,7 +16,7 @@ from gymnasium.vector import AutoresetMode
 from hopper_training.monoped_env import STAY_UP
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
 from robot_rl.task import make_env
-from robot_rl.vector import EnvWorkers, WorkerError, make_vector_env, worker_seeds
+from robot_rl.vector import EnvWorkers, WorkerError, as_env_actions, checked_actions, make_vector_env, worker_seeds
 
 
 def alive(pid):
@@ -165,6 +166,18 @@ def test_a_bad_action_is_refused_before_any_worker_steps_and_the_workers_go_on(a
         assert observations.shape == first.shape
     finally:
         env.close()
+
+
+def test_actions_take_the_form_of_their_space():
+    box = gymnasium.spaces.Box(-1.0, 1.0, (3,), np.float32)
+    actions = as_env_actions(np.arange(6, dtype=np.float64).reshape(2, 3), box, 2)
+    assert [a.dtype for a in actions] == [np.float32] * 2 and actions[1].tolist() == [3.0, 4.0, 5.0]
+    assert as_env_actions(np.array([4, 1]), gymnasium.spaces.Discrete(5), 2) == [4, 1]
+    assert type(as_env_actions(np.int64(3), gymnasium.spaces.Discrete(5), 1)[0]) is int
+    with pytest.raises(ValueError, match="5 action values for 2 envs of Box"):
+        as_env_actions(np.zeros(5), box, 2)
+    with pytest.raises(ValueError, match=r"action \[2.0, 0.0, 0.0\] of env 0 is not in Box"):
+        checked_actions(np.array([[2.0, 0, 0], [0, 0, 0]]), box, 2)
 
 
 def step_with_one_stopped(workers: EnvWorkers, stopped: int) -> None:

@@ -194,7 +194,10 @@ def test_set_joint_positions_puts_joints_at_rest_and_keeps_the_base_and_commands
 
 
 @pytest.mark.parametrize("positions, message", [({"kfe_joint": -0.5, "foot": 0.0}, "no movable joint 'foot'"),
-                                                ({"kfe_joint": -0.5, "hfe_joint": math.nan}, "finite")])
+                                                ({"kfe_joint": -0.5, "hfe_joint": math.nan}, "finite"),
+                                                ({"kfe_joint": -0.5, "hfe_joint": 1e30},
+                                                 r"'hfe_joint': position 1e\+30 is outside its URDF limits \[-1.6, 1.6\]"),
+                                                ({"kfe_joint": 0.1}, r"outside its URDF limits \[-1.6, 0.0\]")])
 def test_bad_joint_positions_are_refused_and_change_nothing(worlds, positions, message):
     hopper = worlds(HOPPER_URDF, HOPPER_PARAMS)
     before = hopper.read_joint_states().position

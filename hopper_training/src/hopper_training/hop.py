@@ -2,20 +2,22 @@
 
 The tutorial promised to make the monoped "learn to hop"; its code only taught it to stay up. This
 task keeps Monoped-v0's robot, actions, observation and termination, and adds a reward for forward
-progress, as Gymnasium's hopper_v5 does (forward_reward_weight * x velocity + a healthy reward).
+progress, as Gymnasium's hopper_v5 does (forward_reward_weight * x velocity + a healthy reward), with
+the velocity counted up to target_speed, so that a dive (faster than a hop) pays no more than hopping.
 
 Actions, observation, termination, truncation, info and arguments: as Monoped-v0 (monoped_env.py),
     with HopParams (default config/hop.yaml).
 Reward: the sum of the terms, each in info as reward_<term>
     Monoped-v0's terms (alive, joint_position, joint_effort, contact_force, orientation, distance), with
         this task's weights (its YAML sets weight_r5 to 0: the start point no longer matters)
-    forward  forward_reward_weight * (x - previous x) / running_step: the base's velocity along +x
+    forward  forward_reward_weight * min((x - previous x) / running_step, target_speed): the base's
+             velocity along +x, up to target_speed (backwards counts in full)
     fall     done_reward, alone, on the step that ends the episode by a fall
-Metrics: x_distance (m along +x at the end of the episode; the headline), time_upright_s,
-    upright_whole_horizon.
+Metrics: Monoped-v0's; x_distance (m along +x at the end of the episode) is the headline.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,6 +35,8 @@ from .state import monoped_state_key
 @dataclass(frozen=True, kw_only=True)
 class HopParams(MonopedParams):
     forward_reward_weight: float = param(low=0.0, doc="reward per m/s of the base along +x")
+    target_speed: float = param(low=0.0, low_open=True, default=math.inf,
+                                doc="m/s: the forward reward counts the velocity along +x up to this")
 
 
 HOP = TaskSpec(
@@ -40,7 +44,7 @@ HOP = TaskSpec(
     robot=MONOPED, params_type=HopParams, params_namespace="/", state_key=monoped_state_key,
     results_name="monoped_hop", reward_topic="/monoped/reward", episode_reward_topic="/monoped/episode_reward",
     publish_cumulated_reward=True, max_episode_steps=500, metrics=monoped_metrics, headline_metric="x_distance",
-    eval_horizon_s=10.0)
+    eval_horizon_s=10.0, curve_metrics=("forward_speed", "hops"))
 
 
 class MonopedHopEnv(MonopedEnv):
@@ -55,6 +59,7 @@ class MonopedHopEnv(MonopedEnv):
         terms, fell, info = super()._reward_and_termination(observation, readings)
         x = readings.odometry(ODOMETRY_SENSOR).position[0]
         if not fell:
-            terms["forward"] = self.params.forward_reward_weight * (x - self._previous_x) / self.running_step
+            velocity = (x - self._previous_x) / self.running_step
+            terms["forward"] = self.params.forward_reward_weight * min(velocity, self.params.target_speed)
         self._previous_x = x
         return terms, fell, info

@@ -1,9 +1,11 @@
 """How the monoped hopped in an episode, tracked from the per-step readings (the env feeds one sample a step).
 
 Definitions (each step's readings are one sample, running_step apart):
-- a flight is a run of consecutive samples without foot contact that follows a sample with contact and ends
-  with one (the landing); a hop is a flight of at least MIN_FLIGHT_S, counted as samples x running_step
-  (0.06 s: 3 samples at 20 ms, a rise of about 4 mm). Bounces and contact chatter shorter than that are not hops.
+- a flight is a run of consecutive samples without foot contact (contact: a contact force above 0, as the
+  observation's) that follows a sample with contact and ends with one (the landing); a hop is a flight of
+  at least MIN_FLIGHT_S, counted as samples x running_step (0.06 s: 3 samples at 20 ms, a rise of about
+  4 mm), in which the base rises (its fitted arc starts upwards). Bounces and contact chatter shorter than
+  that are not hops, nor is a foot that slips off the ground as the robot falls.
 - apex_height: over the episode's hops, the mean of the base's highest point in each flight above its
   height at the start of the episode (m; 0 with no hop). The odometry's height has 0.01 m of noise, so the
   highest point is that of a ballistic arc (z = a + b t - g t^2 / 2) fitted by least squares to the
@@ -23,14 +25,15 @@ FORWARD_WINDOW_S = 5.0
 GRAVITY = 9.81  # m/s^2: the sim's default gravity
 
 
-def apex_of_flight(times: list[float], heights: list[float]) -> float:
-    """The highest point of a ballistic arc fitted to (time, height) samples of one flight, within the flight."""
+def fit_flight(times: list[float], heights: list[float]) -> tuple[float, float]:
+    """(highest point within the flight, vertical velocity at its first sample) of the ballistic arc fitted to
+    (time, height) samples of one flight."""
     t = np.asarray(times) - times[0]
     z = np.asarray(heights)
     design = np.column_stack([np.ones_like(t), t])
     (a, b), *_ = np.linalg.lstsq(design, z + 0.5 * GRAVITY * t * t, rcond=None)
     top = min(max(b / GRAVITY, 0.0), float(t[-1]))
-    return float(a + b * top - 0.5 * GRAVITY * top * top)
+    return float(a + b * top - 0.5 * GRAVITY * top * top), float(b)
 
 
 class HopTracker:
@@ -61,8 +64,10 @@ class HopTracker:
         else:
             flight = self._flight
             if flight is not None and len(flight[0]) * self.running_step >= MIN_FLIGHT_S - 1e-9:
-                self.hops += 1
-                self.apexes.append(apex_of_flight(*flight) - self.start[2])
+                apex, rising = fit_flight(*flight)
+                if rising > 0.0:
+                    self.hops += 1
+                    self.apexes.append(apex - self.start[2])
             self._flight = None
         self._was_in_contact = contact
         history = self._x_history

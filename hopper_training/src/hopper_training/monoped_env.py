@@ -112,7 +112,7 @@ STAY_UP = TaskSpec(
     robot=MONOPED, params_type=MonopedParams, params_namespace="/", state_key=monoped_state_key,
     results_name="monoped", reward_topic="/monoped/reward", episode_reward_topic="/monoped/episode_reward",
     publish_cumulated_reward=True, max_episode_steps=500, metrics=monoped_metrics,
-    headline_metric="time_upright_s", eval_horizon_s=10.0)
+    headline_metric="time_upright_s", eval_horizon_s=10.0, curve_metrics=("hops",))
 
 
 def joint_positions(readings: Readings) -> list[float]:
@@ -149,6 +149,7 @@ class MonopedEnv(RobotEnv[MonopedParams]):
 
     @functools.cached_property
     def kinematics(self) -> LegKinematics:
+        """The leg's kinematics, from the URDF: where the foot is for the start pose."""
         return leg_kinematics(self.task.robot.urdf_path)
 
     @property

@@ -48,11 +48,13 @@ class MonopedParams(TaskParams):
     weight_r5: float = param(doc="penalty weight of the distance from desired_pose")
     state_key: str = param(choices=("tilt", "tutorial"), default="tutorial",
                            doc="the Q-learning state key: tilt (TiltStateKey) or the tutorial's 10 bins")
-    action_mode: str = param(choices=ACTION_MODES, default="accumulate",
+    # Absent (the params.yaml of a run from before these keys): the tutorial's rule and straight leg, as trained.
+    action_mode: str = param(choices=ACTION_MODES, default="tutorial",
                              doc="accumulate: Discrete(7) steps on the last commanded targets, 6 holds; tutorial: "
                                  "Discrete(6) steps on the measured positions, straight start; targets: Box(3) "
                                  "of absolute targets about start_pose")
-    start_pose: JointPose = param(doc="joint angles at reset (rad), foot on the ground (not in action_mode tutorial)")
+    start_pose: JointPose = param(default=JointPose(haa=0.0, hfe=0.0, kfe=0.0),
+                                  doc="joint angles at reset (rad), foot on the ground (not in action_mode tutorial)")
     target_range: float = param(low=0.0, low_open=True, high=3.2, default=1.0,
                                 doc="action_mode targets: an action of +/-1 is start_pose +/- this (rad)")
     observation: str = param(choices=OBSERVATIONS, default="standard",

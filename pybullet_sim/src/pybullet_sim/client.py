@@ -2,18 +2,22 @@
 message or its values), counted command publishers and sensor subscribers that wait (bounded) for fresh readings.
 
 Every wait here has a timeout and fails with a SimConnectionError naming the topic or service and
-what to check. Service proxies are persistent (one socket for the whole run).
+what to check. Service proxies are persistent (one socket for the whole run): a sim node that dies, or
+is restarted, ends the connection, and the error says which of the two happened.
 """
 from __future__ import annotations
 
+import http.client
 import socket
 import threading
 import time
 import warnings
+import xmlrpc.client
 from collections.abc import Callable, Iterable
 from typing import Any, Generic, TypeVar
 
 import numpy as np
+import rosgraph
 import rospy
 from std_msgs.msg import Float64
 from std_srvs.srv import Empty
@@ -42,6 +46,8 @@ PHYSICS_SERVICE = "/gazebo/get_physics_properties"
 GAZEBO_SERVICES = ("/gazebo/pause_physics", "/gazebo/unpause_physics", "/gazebo/reset_world",
                    "/gazebo/reset_simulation")
 HINT = "is the sim node running? (e.g. roslaunch pybullet_sim cube_sim.launch)"
+ANSWERED_WITH_AN_ERROR = "responded with an error"  # rospy's ServiceException text when the handler raised
+LOST_SIM_WAIT = 2.0  # s a failed call looks for what became of the sim node (gone, or restarted)
 
 Reading = TypeVar("Reading")
 
@@ -197,6 +203,37 @@ class CallWatchdog:
         self._closed.set()
 
 
+class _TimedTransport(xmlrpc.client.Transport):
+    """XML-RPC over HTTP with a socket timeout (rosgraph's master proxy waits for ever)."""
+
+    def __init__(self, timeout: float):
+        super().__init__()
+        self._timeout = timeout
+
+    def make_connection(self, host: Any) -> http.client.HTTPConnection:
+        connection = super().make_connection(host)
+        connection.timeout = self._timeout
+        return connection
+
+
+def service_provider(name: str, timeout: float) -> str | None:
+    """The URI of the node serving `name` now (None: no node does), from the master, within `timeout` s;
+    OSError (or an xmlrpc.client.Error) if the master does not answer."""
+    master = xmlrpc.client.ServerProxy(rosgraph.get_master_uri(), transport=_TimedTransport(timeout))
+    answer: Any = master.lookupService(rospy.get_name(), name)  # (code, status, uri); code 1: found
+    return str(answer[2]) if answer[0] == 1 else None
+
+
+def _accepts_connections(rosrpc_uri: str, timeout: float) -> bool:
+    """Whether something listens at a service's rosrpc:// address (a killed node's port refuses)."""
+    try:
+        host, port = rospy.core.parse_rosrpc_uri(rosrpc_uri)
+        socket.create_connection((host, port), timeout).close()
+    except (OSError, rospy.ROSException):
+        return False
+    return True
+
+
 class SimConnection:
     """pause / unpause / reset_world / reset_simulation / step / reset / is_paused on the sim node, every
     call bounded by `timeout` seconds of wall time."""
@@ -220,12 +257,41 @@ class SimConnection:
         self._request = StepRequest()
         self._render: rospy.ServiceProxy | None = None  # made on the first render()
         self._watchdog = CallWatchdog(timeout)
+        try:  # which sim node this is: a restarted one serves its services at another address
+            self._sim_uri = service_provider(STEP_PACKED_SERVICE, timeout)
+        except (OSError, xmlrpc.client.Error):
+            self._sim_uri = None
 
     def _failed(self, name: str, proxy: rospy.ServiceProxy, error: Exception) -> SimConnectionError:
         if self._watchdog.expired is proxy:
             return SimConnectionError(f"service {name} did not answer within {self.timeout} s: the sim node is "
                                       f"frozen or overloaded (is it stopped, or stepping a huge request?)")
-        return SimConnectionError(f"service {name} failed: {error}; {self.hint}")
+        return SimConnectionError(f"service {name} failed: {self._what_became_of_the_sim(error)}")
+
+    def _what_became_of_the_sim(self, error: Exception) -> str:
+        """After a call failed with `error`: whether the sim node is gone or was restarted, as the master tells.
+        A dying node may still accept connections for a moment after its sockets broke: looked at again for up
+        to LOST_SIM_WAIT seconds before the error is given as it is."""
+        if ANSWERED_WITH_AN_ERROR in str(error):  # the sim is there: it refused the request
+            return f"{error}; {self.hint}"
+        deadline = time.monotonic() + min(self.timeout, LOST_SIM_WAIT)
+        while True:
+            try:
+                uri = service_provider(STEP_PACKED_SERVICE, min(self.timeout, LOST_SIM_WAIT))
+            except (OSError, xmlrpc.client.Error):  # the master is gone too, or frozen: it cannot tell
+                uri = self._sim_uri
+            if uri is None or (uri == self._sim_uri and not _accepts_connections(uri, LOST_SIM_WAIT)):
+                # a killed node stays registered with the master until another takes its name
+                return (f"the sim node is gone (nothing serves {STEP_PACKED_SERVICE} any more: was it killed? see "
+                        f"its log); {self.hint}")
+            if self._sim_uri is not None and uri != self._sim_uri:
+                return (f"the sim node was restarted (it serves {STEP_PACKED_SERVICE} at {uri} now, at "
+                        f"{self._sim_uri} before): a restarted sim starts over (sim time 0, the robot at its spawn "
+                        f"pose, its params read again), so this connection cannot go on with it; a new env connects "
+                        f"to the new sim")
+            if time.monotonic() > deadline:
+                return f"{error}; {self.hint}"
+            time.sleep(0.05)
 
     def _call(self, name: str, proxy: rospy.ServiceProxy, request: Any = None) -> Any:
         self._watchdog.start(proxy)

@@ -60,8 +60,8 @@ from .gazebo_services import GazeboServices
 from .readings import JointStateReading
 from .sensors import SENSOR_KINDS, pack_readings
 from .shutdown import shutdown_on_signals, shutting_down
-from .validation import param
-from .world import SolverSettings, UrdfError, World
+from .validation import MAX_TIME_STEP, MAX_WAIT, param
+from .world import MIN_TIME_STEP, SolverSettings, UrdfError, World
 
 STEP_BATCH = 10  # physics steps between two looks at the clock during a lockstep call
 STEP_SLICE = 0.02  # s of wall time a lockstep call holds the World before it lets other services in
@@ -88,10 +88,10 @@ class _Schedule:
 class SimNode:
     def __init__(self):
         params = rospy.get_param("~", {})
-        time_step = param(params, "time_step", float, "~", 0.001, minimum=1e-6)
+        time_step = param(params, "time_step", float, "~", 0.001, minimum=MIN_TIME_STEP, maximum=MAX_TIME_STEP)
         self.real_time_factor = param(params, "real_time_factor", float, "~", 1.0, minimum=0.0)
         self._paused = param(params, "paused", bool, "~", False)
-        self.command_timeout = param(params, "command_timeout", float, "~", 2.0, minimum=0.0)
+        self.command_timeout = param(params, "command_timeout", float, "~", 2.0, minimum=0.0, maximum=MAX_WAIT)
         self.pub_clock_period = 1.0 / param(params, "pub_clock_frequency", float, "~", 100.0, minimum=1e-3)
         seed = param(params, "seed", int, "~", 0, minimum=0)  # numpy's seeds are >= 0; a ROS int is < 2**31
         gui = param(params, "gui", bool, "~", False)

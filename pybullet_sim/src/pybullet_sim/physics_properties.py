@@ -3,8 +3,8 @@
 Gazebo's set_physics_properties sets gravity, the physics step (time_step), the real-time update rate
 (max_update_rate: steps per wall second, 0 = as fast as possible) and the ODE solver (ode_config). Here:
 
-- gravity: World.set_gravity, kept across resets as in Gazebo.
-- time_step: World.set_time_step; sim time stays continuous.
+- gravity: World.set_gravity, kept across resets as in Gazebo; at most MAX_GRAVITY per axis (validation).
+- time_step: World.set_time_step; sim time stays continuous; at most MAX_TIME_STEP (validation).
 - max_update_rate: the real-time factor, max_update_rate * time_step (0 = as fast as possible).
 - ode_config.sor_pgs_iters, sor_pgs_rms_error_tol, erp, cfm: PyBullet's solver iterations, residual
   threshold, erp and global cfm (World.set_solver; PyBullet's solver is a projected Gauss-Seidel too).
@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+from .validation import MAX_GRAVITY, MAX_TIME_STEP, out_of_bounds
 from .world import MIN_TIME_STEP, SolverSettings
 
 MAX_SOLVER_ITERATIONS = 1000  # more would make one physics step take seconds
@@ -65,12 +66,14 @@ _NOT_IN_PYBULLET = {
 
 def check(request: PhysicsProperties) -> str:
     """Why the request must be refused ("" if it may be applied); the reason names the field and value."""
-    if not (math.isfinite(request.time_step) and request.time_step >= MIN_TIME_STEP):
-        return f"time_step must be a finite number of seconds >= {MIN_TIME_STEP:g}, got {request.time_step!r}"
+    if not (math.isfinite(request.time_step) and MIN_TIME_STEP <= request.time_step <= MAX_TIME_STEP):
+        return (f"time_step must be a finite number of seconds from {MIN_TIME_STEP:g} to {MAX_TIME_STEP:g}, got "
+                f"{request.time_step!r}")
     if not (math.isfinite(request.max_update_rate) and request.max_update_rate >= 0.0):
         return f"max_update_rate must be a finite number >= 0 (0: as fast as possible), got {request.max_update_rate!r}"
-    if not all(math.isfinite(g) for g in request.gravity):
-        return f"gravity must be finite, got {request.gravity!r}"
+    gravity = out_of_bounds("gravity", request.gravity, MAX_GRAVITY, "m/s^2")
+    if gravity:
+        return gravity
     ode = request.ode
     if not 1 <= ode.sor_pgs_iters <= MAX_SOLVER_ITERATIONS:
         return f"ode_config.sor_pgs_iters must be between 1 and {MAX_SOLVER_ITERATIONS}, got {ode.sor_pgs_iters}"

@@ -40,9 +40,14 @@ def rotate(quaternion: Sequence[float], vector: Sequence[float]) -> tuple[float,
 
 
 def normalized(quaternion: Sequence[float]) -> tuple[float, ...]:
-    """A unit quaternion; all zeros (a default geometry_msgs/Pose) means no rotation, as in Gazebo."""
-    norm = math.sqrt(sum(q * q for q in quaternion))
-    return (0.0, 0.0, 0.0, 1.0) if norm < 1e-12 else tuple(q / norm for q in quaternion)
+    """A unit quaternion; all zeros (a default geometry_msgs/Pose) or nearly means no rotation, as in Gazebo.
+    Scaled by its largest component first, so that the squares of a finite 1e200 do not overflow."""
+    scale = max(abs(q) for q in quaternion)
+    if scale < 1e-12:
+        return (0.0, 0.0, 0.0, 1.0)
+    scaled = [q / scale for q in quaternion]
+    norm = math.sqrt(sum(q * q for q in scaled))
+    return tuple(q / norm for q in scaled)
 
 
 def relative_state(state: FrameState, frame: FrameState) -> FrameState:

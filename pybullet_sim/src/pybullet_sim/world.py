@@ -47,6 +47,7 @@ from .sensors import SENSOR_KINDS
 from .starts import MAX_REMEMBERED_STARTS, Change, StartKey, StartMemory
 from .transforms import cross, normalized, quaternion_multiply, rotate, transpose_rotate
 from .urdf import UrdfError, UrdfJoint, parse_urdf_joints
+from .validation import frame_state_problem
 
 __all__ = ["DEFAULT_GRAVITY", "MAX_REMEMBERED_STARTS", "SolverSettings", "UrdfError", "World"]
 
@@ -374,10 +375,10 @@ class World(Measurements):
         """Move the robot's base frame to a pose with a twist (world frame); the joints keep their state.
 
         As Gazebo does, the orientation is normalised and an all-zero quaternion means no rotation.
-        ValueError if any number is not finite."""
-        numbers = (*state.position, *state.orientation, *state.linear_velocity, *state.angular_velocity)
-        if len(numbers) != 13 or not all(math.isfinite(v) for v in numbers):
-            raise ValueError(f"the pose and twist must be finite numbers, got {state!r}")
+        ValueError naming the field if a number is not finite or beyond the sim's bounds (validation)."""
+        problem = frame_state_problem(state.position, state.orientation, state.linear_velocity, state.angular_velocity)
+        if problem:
+            raise ValueError(problem)
         orientation = normalized(state.orientation)
         inertial_position, inertial_orientation = p.getDynamicsInfo(self._body, -1, physicsClientId=self._cid)[3:5]
         com = tuple(a + b for a, b in zip(state.position, rotate(orientation, inertial_position), strict=True))
@@ -394,13 +395,17 @@ class World(Measurements):
     def set_joint_positions(self, positions: Mapping[str, float]) -> None:
         """Set movable joints to positions (rad or m), at rest (Gazebo's set_model_configuration); the base and
         the joints not named keep their state, the controllers their commands. ValueError, with nothing
-        changed, for a joint that is not movable or a position that is not finite."""
+        changed, for a joint that is not movable or a position that is not finite or outside the joint's URDF
+        limits."""
         indices = {name: self._movable[slot] for slot, name in enumerate(self.joint_names)}
         for name, value in positions.items():
             if name not in indices:
                 raise ValueError(f"no movable joint {name!r} (joints: {', '.join(self.joint_names)})")
             if not math.isfinite(value):
                 raise ValueError(f"joint {name!r}: position must be a finite number, got {value!r}")
+            lower, upper = p.getJointInfo(self._body, indices[name], physicsClientId=self._cid)[8:10]
+            if lower <= upper and not lower <= value <= upper:  # a joint with limits (PyBullet: lower > upper if none)
+                raise ValueError(f"joint {name!r}: position {value!r} is outside its URDF limits [{lower}, {upper}]")
         for name, value in positions.items():
             p.resetJointState(self._body, indices[name], float(value), 0.0, physicsClientId=self._cid)
         p.performCollisionDetection(physicsClientId=self._cid)

@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from .evaluation import TrainedRun
     from .ledger import TrainingHooks
 
-Policy = Callable[[np.ndarray], int]
+Policy = Callable[[np.ndarray], Any]  # observation -> action (an int for Discrete, an array for Box)
 PolicyMaker = Callable[[Any, int], Policy]  # (the env the policy acts in, the seed of its tie breaks) -> policy
 
 
@@ -113,6 +113,9 @@ AGENTS: dict[str, AgentSpec] = {spec.name: spec for spec in (
     AgentSpec("ppo", "Stable-Baselines3's PPO", DEEP_CHECKPOINT, "-ppo", needs_deep=True,
               trainer="robot_rl.deep:make_trainer", vector_env="robot_rl.deep:make_vec_env",
               policy="robot_rl.deep:greedy_policy", params="robot_rl.deep:PpoParams"),
+    AgentSpec("sac", "Stable-Baselines3's SAC, for continuous actions", DEEP_CHECKPOINT, "-sac", needs_deep=True,
+              trainer="robot_rl.deep:make_trainer", vector_env="robot_rl.deep:make_vec_env",
+              policy="robot_rl.deep:greedy_policy", params="robot_rl.deep:SacParams"),
 )}
 
 

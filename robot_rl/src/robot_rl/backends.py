@@ -12,10 +12,14 @@ The direct backend makes the same calls on an in-process World and reads every s
 call, as the sim node publishes them once, so the same seed and actions give the same readings.
 GazeboStyleBackend steps as the tutorials step Gazebo (unpause, publish, wait on /clock, pause, read
 the latest messages), for comparison in ./ws bench.
+Every backend refuses readings that are not finite numbers (a state that blew up, whatever the path):
+the call raises, naming the first such reading, instead of handing NaN to the task.
 """
 from __future__ import annotations
 
 import abc
+import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,7 +30,7 @@ import yaml
 
 from pybullet_sim.config import RobotConfig, parse_robot_config
 from pybullet_sim.readings import ContactReading, FrameState, ImuReading, JointStateReading, OdometryReading
-from pybullet_sim.sensors import unpack_readings
+from pybullet_sim.sensors import pack_readings, unpack_readings
 from pybullet_sim.urdf import parse_urdf_joints
 
 if TYPE_CHECKING:
@@ -64,6 +68,34 @@ class Readings:
             raise KeyError(f"the robot has no {kind.__name__[:-len('Reading')].lower()} sensor {name!r} "
                            f"(its sensors: {', '.join(sorted(self.sensors)) or 'none'})")
         return reading
+
+
+class SimStateError(RuntimeError):
+    """The sim's readings are not finite numbers: its state blew up. The message names the reading."""
+
+
+def _first_non_finite(value: Any, where: str) -> str:
+    """The name of the first number in `value` (a reading, or a tuple or dataclass in one) that is not finite, or ""."""
+    if isinstance(value, float):
+        return "" if math.isfinite(value) else f"{where} = {value!r}"
+    if isinstance(value, tuple):
+        return next((found for i, item in enumerate(value) if (found := _first_non_finite(item, f"{where}[{i}]"))), "")
+    if dataclasses.is_dataclass(value):
+        return next((found for f in dataclasses.fields(value)
+                     if (found := _first_non_finite(getattr(value, f.name), f"{where}.{f.name}"))), "")
+    return ""
+
+
+def non_finite_problem(readings: Readings) -> str:
+    """Why `readings` cannot go to a task ("" if every number in them is finite): the first reading that is NaN or
+    infinite, and what to check."""
+    found = _first_non_finite(readings.joints, "joint_states") or next(
+        (found for name, reading in readings.sensors.items() if (found := _first_non_finite(reading, name))), "")
+    if not found:
+        return ""
+    return (f"the sim's state is no longer finite at sim time {readings.stamp:.6f} s: {found}; the physics blew up "
+            f"(check what else sets the robot's state or the physics through the sim's services), so the episode "
+            f"cannot go on: restart the sim")
 
 
 class Backend(abc.ABC):
@@ -109,6 +141,7 @@ class DirectBackend(Backend):
         from pybullet_sim.world import World  # PyBullet only where it is used
         params = yaml.safe_load(Path(sim_config_path).read_text())
         self.config = parse_robot_config(params, where=str(sim_config_path))
+        self._sensor_names = [s.name for s in self.config.sensors]
         self.time_step = time_step
         self.world = World(Path(urdf_path).read_text(), self.config, time_step=time_step, seed=seed, gui=gui,
                            urdf_source=str(urdf_path))
@@ -116,7 +149,13 @@ class DirectBackend(Backend):
 
     def _read(self) -> Readings:
         world = self.world
-        return Readings(world.read_joint_states(), {s.name: world.read_sensor(s) for s in self.config.sensors})
+        joints, sensors = world.read_joint_states(), [world.read_sensor(s) for s in self.config.sensors]
+        readings = Readings(joints, dict(zip(self._sensor_names, sensors)))
+        if not math.isfinite(sum(pack_readings(joints, sensors)[0])):  # the numbers the sim node would send
+            problem = non_finite_problem(readings)
+            if problem:
+                raise SimStateError(problem)
+        return readings
 
     def reset(self, restart_time: bool = False) -> Readings:
         if restart_time:
@@ -222,7 +261,12 @@ class RosBackend(Backend):
         except ValueError as error:
             raise SimConnectionError(f"the sim's answer does not fit the sensors {', '.join(self._sensor_names)}: "
                                      f"{error} (does the sim node run another version of pybullet_sim?)") from None
-        return Readings(joints, dict(zip(self._sensor_names, sensors)))
+        readings = Readings(joints, dict(zip(self._sensor_names, sensors)))
+        if not math.isfinite(sum(packed.values)):  # one sum: NaN or inf in, NaN or inf out (a huge sum: looked into)
+            problem = non_finite_problem(readings)
+            if problem:
+                raise SimConnectionError(problem)
+        return readings
 
     def reset(self, restart_time: bool = False) -> Readings:
         self._pending = {}  # a reset restarts the controllers, as in the World: earlier commands are gone
@@ -374,7 +418,11 @@ class GazeboStyleBackend(RosBackend):
                                          f"{self.timeout} s")
         self.sim.pause()
         self._stamp = None  # the latest messages are of no exact time: the next answer is not checked
-        return Readings(self._latest(self._joints), {name: self._latest(s) for name, s in self._sensors.items()})
+        readings = Readings(self._latest(self._joints), {name: self._latest(s) for name, s in self._sensors.items()})
+        problem = non_finite_problem(readings)
+        if problem:
+            raise SimConnectionError(problem)
+        return readings
 
     def _latest(self, subscriber: Any) -> Any:
         """The subscriber's latest reading; the first one waited for (bounded) if none has arrived yet."""

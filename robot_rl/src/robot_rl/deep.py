@@ -1,4 +1,4 @@
-"""Deep agents: Stable-Baselines3's DQN and PPO on any task, over ROS or direct, with one env or N.
+"""Deep agents: Stable-Baselines3's DQN, PPO and SAC on any task, over ROS or direct, with one env or N.
 
 Needs requirements-deep.txt (torch, stable-baselines3), which ./ws installs the first time a deep agent
 is asked for. Agents run on the CPU with one torch thread (the envs' workers need the other core).
@@ -7,7 +7,9 @@ is asked for. Agents run on the CPU with one torch thread (the envs' workers nee
   ROS each with its own master and sim node). SB3's conventions: done = terminated or truncated, the
   last observation in info["terminal_observation"], info["TimeLimit.truncated"], the env reset at once.
   `seed(s)` gives worker i the i-th seed numpy's SeedSequence(s) derives, as the gymnasium face does.
-- `DqnParams`, `PpoParams`: each agent's params (robot_rl/config/<agent>.yaml) and its SB3 algorithm.
+- `DqnParams`, `PpoParams`, `SacParams`: each agent's params (robot_rl/config/<agent>.yaml) and its SB3
+  algorithm. DQN needs a task with Discrete actions, SAC one with Box actions, PPO takes either; an action
+  travels to the env as the space holds it (an int, or a float32 array).
 - `DeepTrainer`: trains until `nepisodes` episodes have ended (or `max_steps` env steps: then DQN's
   exploration falls over a share of those steps, SB3's way; without it over a share of the episodes,
   like tabular Q-learning's epsilon, by `EpisodeSchedule`); its RunLedger writes the run as tabular
@@ -18,10 +20,10 @@ is asked for. Agents run on the CPU with one torch thread (the envs' workers nee
   never unpickled) before any file of the run changes: model.zip must have the sha256 agent.json
   recorded when it was written and fit the rebuilt model, else one line naming model.zip (a
   RunFileError). The counters (episodes, env steps, SB3's num_timesteps, so DQN's exploration
-  schedule goes on where it was) come from agent.json. Not saved: DQN's replay buffer (SB3 pickles it) and
-  the optimiser's RNG streams, so a resumed DQN first collects `learning_starts` new transitions with
-  its current policy before it trains again, and a resumed run is not bit-for-bit the uninterrupted
-  one; PPO's rollout under way at the checkpoint is collected anew.
+  schedule goes on where it was) come from agent.json. Not saved: DQN's and SAC's replay buffers (SB3
+  pickles them) and the optimiser's RNG streams, so a resumed DQN or SAC first collects
+  `learning_starts` new transitions with its current policy before it trains again, and a resumed run
+  is not bit-for-bit the uninterrupted one; PPO's rollout under way at the checkpoint is collected anew.
 - `make_trainer`, `make_vec_env`, `greedy_policy`: the agent registry's entry points (robot_rl.agents);
   `greedy_policy` is a trained run's deterministic policy, for evaluate.py and the training video.
 """
@@ -38,17 +40,18 @@ from typing import TYPE_CHECKING, Any
 import gymnasium
 import numpy as np
 import torch
-from stable_baselines3 import DQN, PPO
+from stable_baselines3 import DQN, PPO, SAC
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Logger
+from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 
 from .ledger import DEFAULT_HOOKS, Learner, RunLedger, TrainingHooks, TrainingState, format_duration, restored_state
 from .params import MAX_COUNT, ParamError, Params, TaskParams, param
 from .results import EpisodeRecord, RunDirectory, RunFileError, aggregate
 from .task import Episode, TaskSpec
-from .vector import EnvWorkers, worker_seeds
+from .vector import EnvWorkers, as_env_actions, worker_seeds
 
 if TYPE_CHECKING:
     from .agents import AgentSpec
@@ -94,8 +97,18 @@ class NetworkParams(Params):
     learning_rate: float = param(low=0.0, low_open=True, high=1.0, doc="Adam's step size")
 
     def algorithm(self) -> Callable[..., BaseAlgorithm]:
-        """The SB3 algorithm these params are for (DQN and PPO take gamma, BaseAlgorithm does not)."""
+        """The SB3 algorithm these params are for (DQN, PPO and SAC take gamma, BaseAlgorithm does not)."""
         raise NotImplementedError
+
+    def algorithm_kwargs(self) -> dict[str, Any]:
+        """The algorithm's keyword arguments from these params (the network's are policy_kwargs')."""
+        values = self.to_mapping()
+        for key in ("hidden_layers", "hidden_units"):
+            del values[key]
+        return values
+
+    def check_action_space(self, space: gymnasium.spaces.Space[Any], source: str) -> None:
+        """ParamError in one line when the algorithm cannot act in `space`."""
 
     def policy_kwargs(self, network: list[int]) -> dict[str, Any]:
         """SB3's policy_kwargs for hidden layers of these sizes."""
@@ -111,8 +124,8 @@ class NetworkParams(Params):
         needed, available = self.buffer_bytes(observation_size, n_envs), _available_memory()
         if available is not None and needed > available:
             raise ValueError(f"the agent's buffer needs {needed / 2**30:.3g} GiB, more than the "
-                             f"{available / 2**30:.3g} GiB of memory available: lower buffer_size (DQN) or n_steps "
-                             f"(PPO) in the agent_config")
+                             f"{available / 2**30:.3g} GiB of memory available: lower buffer_size (DQN, SAC) or "
+                             f"n_steps (PPO) in the agent_config")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -131,6 +144,10 @@ class DqnParams(NetworkParams):
 
     def algorithm(self) -> Callable[..., BaseAlgorithm]:
         return DQN
+
+    def check_action_space(self, space: gymnasium.spaces.Space[Any], source: str) -> None:
+        if not isinstance(space, gymnasium.spaces.Discrete):
+            raise ParamError(f"{source}: DQN needs Discrete actions, the task has {space} (try agent:=sac or ppo)")
 
     def buffer_bytes(self, observation_size: int, n_envs: int) -> int:
         """SB3's replay buffer: per transition an observation, the next one (float32), action, reward, done, timeout."""
@@ -162,14 +179,50 @@ class PpoParams(NetworkParams):
         return {"net_arch": {"pi": network, "vf": network}}
 
 
+@dataclass(frozen=True, kw_only=True)
+class SacParams(NetworkParams):
+    """Stable-Baselines3 SAC's arguments (gamma is the task's); see robot_rl/config/sac.yaml."""
+
+    buffer_size: int = param(low=1, high=MAX_COUNT, doc="replay buffer capacity (transitions)")
+    learning_starts: int = param(low=0, high=MAX_COUNT, doc="transitions collected before the first gradient step")
+    batch_size: int = param(low=1, high=MAX_COUNT, doc="transitions per gradient step")
+    tau: float = param(low=0.0, low_open=True, high=1.0, doc="soft update coefficient of the target networks")
+    train_freq: int = param(low=1, high=MAX_COUNT, doc="env steps (per env) between two trainings")
+    gradient_steps: int = param(low=1, high=MAX_COUNT, doc="gradient steps per training")
+    ent_coef: float = param(low=0.0, low_open=True, doc="entropy coefficient (its start value if learned)")
+    learn_ent_coef: bool = param(doc="learn the entropy coefficient towards a target entropy (SB3's 'auto')")
+
+    def algorithm(self) -> Callable[..., BaseAlgorithm]:
+        return SAC
+
+    def algorithm_kwargs(self) -> dict[str, Any]:
+        values = super().algorithm_kwargs()
+        learn = values.pop("learn_ent_coef")
+        values["ent_coef"] = f"auto_{values['ent_coef']}" if learn else values["ent_coef"]
+        return values
+
+    def check_action_space(self, space: gymnasium.spaces.Space[Any], source: str) -> None:
+        if not isinstance(space, gymnasium.spaces.Box):
+            raise ParamError(f"{source}: SAC needs Box (continuous) actions, the task has {space} "
+                             f"(try agent:=dqn or ppo, or a task with continuous actions)")
+
+    def buffer_bytes(self, observation_size: int, n_envs: int) -> int:
+        """SB3's replay buffer: per transition an observation, the next one, an action of at most 8 floats
+        (float32), reward, done, timeout."""
+        return self.buffer_size * (2 * 4 * observation_size + 4 * 8 + 4 + 4 + 4)
+
+    def policy_kwargs(self, network: list[int]) -> dict[str, Any]:
+        return {"net_arch": network}
+
+
 def build_model(agent_params: NetworkParams, env: VecEnv | gymnasium.Env[Any, Any], gamma: float,
                 seed: int) -> BaseAlgorithm:
     """The SB3 model these params are for, on the CPU, with a logger that writes nothing (SB3's default one
     makes an empty folder /tmp/SB3-<date> at every learn())."""
-    values = agent_params.to_mapping()
-    network = [values.pop("hidden_units")] * values.pop("hidden_layers")
+    network = [agent_params.hidden_units] * agent_params.hidden_layers
     model = agent_params.algorithm()("MlpPolicy", env, gamma=gamma, seed=seed, device="cpu", verbose=0,
-                                     policy_kwargs=agent_params.policy_kwargs(network), **values)
+                                     policy_kwargs=agent_params.policy_kwargs(network),
+                                     **agent_params.algorithm_kwargs())
     model.set_logger(Logger(folder=None, output_formats=[]))
     return model
 
@@ -195,7 +248,6 @@ class RobotVecEnv(VecEnv):
     def __init__(self, workers: EnvWorkers):
         self.workers = workers
         super().__init__(workers.n, workers.observation_space, workers.action_space)
-        self._actions: list[int] = []
 
     def seed(self, seed: int | None = None) -> Sequence[int | None]:
         self._seeds = list(worker_seeds(seed, self.num_envs))
@@ -209,8 +261,8 @@ class RobotVecEnv(VecEnv):
         return np.stack([observation for observation, _ in replies])
 
     def step_async(self, actions: np.ndarray) -> None:
-        for i, action in enumerate(np.asarray(actions).reshape(self.num_envs)):
-            self.workers.send(i, "step", int(action))
+        for i, action in enumerate(as_env_actions(actions, self.action_space, self.num_envs)):
+            self.workers.send(i, "step", action)
 
     def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
         replies = self.workers.receive_all(what="answer a step")
@@ -306,6 +358,7 @@ class DeepTrainer(Learner):
         self.max_steps = max_steps if max_steps is not None else params.nepisodes * params.nsteps  # at most
         self.n_envs = self.env.num_envs
         run.checkpoint_name = agent.checkpoint_name
+        agent_params.check_action_space(self.env.action_space, f"agent {agent.name} on {task.env_id}")
         agent_params.check_memory(int(np.prod(self.env.observation_space.shape or (1,))), self.env.num_envs)
         self.model = build_model(agent_params, self.env, params.gamma, params.seed)
         self.agent_params = agent_params
@@ -320,7 +373,7 @@ class DeepTrainer(Learner):
         if resume:
             self.state, num_timesteps = run.prepare_resume(self._restore)
             self.model.num_timesteps = num_timesteps
-            if isinstance(self.model, DQN):  # its replay buffer was not saved: fill it anew before training
+            if isinstance(self.model, OffPolicyAlgorithm):  # replay buffer not saved: fill it anew first
                 self.model.learning_starts = num_timesteps + self.model.learning_starts
             hooks.log(f"Resuming {run.path} after episode {self.state.episode} ({self.state.env_steps} env steps)")
         else:
@@ -440,9 +493,9 @@ class DeepPolicy:
     def __init__(self, model: BaseAlgorithm):
         self.model = model
 
-    def __call__(self, observation: np.ndarray) -> int:
+    def __call__(self, observation: np.ndarray) -> int | np.ndarray:
         action, _ = self.model.predict(observation, deterministic=True)
-        return int(action)
+        return as_env_actions(action, self.model.action_space, 1)[0]
 
 
 def make_trainer(agent: AgentSpec, env: VecEnv | gymnasium.Env[Any, Any], task: TaskSpec[Any], params: TaskParams,

@@ -174,7 +174,7 @@ class RunLedger:
         """The trainer's checkpoint, then learning_curve.png."""
         self.sync_env_steps()
         self.learner.save_checkpoint()
-        self.run.write_learning_curve(self.task.headline_metric)
+        self.run.write_learning_curve(self.task.headline_metric, *self.task.curve_metrics)
 
     def log_progress_if_due(self) -> None:
         """A progress line (episodes, rate, ETA, the headline metric) every progress_every_s seconds."""

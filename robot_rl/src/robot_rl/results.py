@@ -290,8 +290,8 @@ class RunDirectory:
         write_text_atomic(self.episodes_csv, header + buf.getvalue())
         return restored
 
-    def write_learning_curve(self, metric: str | None = None) -> None:
-        """Plot return, the task metric `metric` (if given) and epsilon per episode, each with its moving
+    def write_learning_curve(self, *metrics: str) -> None:
+        """Plot return, the task's `metrics` (if given) and epsilon per episode, each with its moving
         average over MOVING_AVERAGE episodes, to learning_curve.png."""
         import matplotlib
         matplotlib.use("Agg")
@@ -299,7 +299,7 @@ class RunDirectory:
 
         records = self.read_episodes()
         panels = [("return", [r.return_ for r in records])]
-        if metric is not None:
+        for metric in metrics:
             panels.append((metric, [float(r.metrics.get(metric, np.nan)) for r in records]))
         panels.append(("epsilon", [r.epsilon for r in records]))
         fig, axes = plt.subplots(len(panels), 1, figsize=(8, 2.2 + 2.0 * len(panels)), sharex=True)

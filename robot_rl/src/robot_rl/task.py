@@ -108,6 +108,7 @@ class TaskSpec(Generic[P]):
     metrics: Callable[[Episode], dict[str, MetricValue]]   # per episode (also of an empty one); bools are rates
     headline_metric: str                        # the metric progress lines show
     eval_horizon_s: float                       # evaluate.py's default horizon, in sim seconds
+    curve_metrics: tuple[str, ...] = ()         # metrics learning_curve.png plots below the headline one
 
     @property
     def metric_names(self) -> tuple[str, ...]:

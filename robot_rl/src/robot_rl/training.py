@@ -43,7 +43,11 @@ class QLearningTrainer(Learner):
         self.on_step, self.should_stop = hooks.on_step, hooks.should_stop
         self.state_key = task.state_key(params)
         # A vector env's single_action_space: the action space of one of its envs.
-        self.n_actions = int(getattr(env, "single_action_space", env.action_space).n)  # type: ignore[union-attr]
+        space = getattr(env, "single_action_space", env.action_space)
+        if not isinstance(space, gymnasium.spaces.Discrete):
+            raise ValueError(f"tabular Q-learning needs Discrete actions, {task.env_id} has {space} (the monoped's "
+                             f"action_mode targets is for the deep agents)")
+        self.n_actions = int(space.n)
         self.running_step = params.running_step
         if resume:
             self.qlearn, self.state, self.initial_epsilon = run.prepare_resume(self._restore)

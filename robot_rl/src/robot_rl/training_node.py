@@ -8,7 +8,7 @@ key), plus ~nepisodes and ~seed, optional overrides of the YAML's. A relative or
 resolved against ~launch_dir, the folder roslaunch ran in (roslaunch runs nodes in ROS_HOME). Once
 trained, video.mp4 next to learning_curve.png shows one greedy episode of the final policy (at most
 TRAINING_VIDEO_S of sim time, rendered on the direct backend, so the ROS sim is not needed). With
-~agent dqn or ppo the runs go to <results name>-<agent>/; with ~envs N > 1 the env is N workers, each
+~agent dqn, ppo or sac: the runs go to <results name>-<agent>/; with ~envs N > 1 the env is N workers, each
 with a master and a sim of its own (robot_rl.vector; the launch's own sim then idles).
 
 SIGINT or SIGTERM (Ctrl-C, roslaunch shutting down) stops the run cleanly (pybullet_sim.shutdown: a rospy

@@ -386,17 +386,28 @@ class EnvWorkers:
             self.close()
 
 
-def checked_actions(actions: Any, space: gymnasium.spaces.Space[Any], n: int) -> list[int]:
-    """One action per env, each checked against `space` before any is sent: a bad action is a ValueError
-    naming it and its env, and no worker steps (or fails on it)."""
+def as_env_actions(actions: Any, space: gymnasium.spaces.Space[Any], n: int) -> list[Any]:
+    """`actions` (a batch, as an agent gives it) as `n` single actions in the form `space` holds: ints for
+    Discrete, float32 arrays of the space's shape for Box. ValueError if there are not `n` of them."""
     values = np.asarray(actions)
+    if isinstance(space, gymnasium.spaces.Box):
+        shape = space.shape or ()
+        if values.size != n * int(np.prod(shape)):
+            raise ValueError(f"{values.size} action values for {n} envs of {space}: {actions!r}")
+        return [np.asarray(a, dtype=space.dtype) for a in values.reshape((n, *shape))]
     if values.size != n:
         raise ValueError(f"{values.size} actions for {n} envs: {actions!r}")
-    checked = []
-    for i, action in enumerate(values.reshape(n)):
+    return [int(a) if isinstance(space, gymnasium.spaces.Discrete) and np.issubdtype(a.dtype, np.integer) else a
+            for a in values.reshape(n)]
+
+
+def checked_actions(actions: Any, space: gymnasium.spaces.Space[Any], n: int) -> list[Any]:
+    """One action per env, each checked against `space` before any is sent: a bad action is a ValueError
+    naming it and its env, and no worker steps (or fails on it)."""
+    checked = as_env_actions(actions, space, n)
+    for i, action in enumerate(checked):
         if not space.contains(action):
-            raise ValueError(f"action {action.item()!r} of env {i} is not in {space}")
-        checked.append(int(action))
+            raise ValueError(f"action {np.asarray(action).tolist()!r} of env {i} is not in {space}")
     return checked
 
 
