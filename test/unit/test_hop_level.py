@@ -10,8 +10,16 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 from hopper_training.controller import HopController, HopGains, HopInput, Phase
-from hopper_training.hop_level import (HOP_LEVEL, SPEED_EDGES, HopLevelStateKey, action_meaning, controller_params,
-                                       do_nothing_action, offsets, thrust_knees)
+from hopper_training.hop_level import (
+    HOP_LEVEL,
+    SPEED_EDGES,
+    HopLevelStateKey,
+    action_meaning,
+    controller_params,
+    do_nothing_action,
+    offsets,
+    thrust_knees,
+)
 from robot_rl.params import ParamError
 from robot_rl.task import make_env
 

@@ -70,8 +70,17 @@ from robot_rl.params import ParamError, param
 from robot_rl.task import Episode, MetricValue, StateKey, TaskSpec
 
 from .controller import HopController, HopGains, Phase, hop_input
-from .monoped_env import (CONTACT_SENSOR, CONTROLLERS, IMU_SENSOR, MONOPED, ODOMETRY_SENSOR, MonopedEnv,
-                          base_rpy, contact_force, monoped_metrics)
+from .monoped_env import (
+    CONTACT_SENSOR,
+    CONTROLLERS,
+    IMU_SENSOR,
+    MONOPED,
+    ODOMETRY_SENSOR,
+    MonopedEnv,
+    base_rpy,
+    contact_force,
+    monoped_metrics,
+)
 from .params import MonopedParams
 
 SPEED_EDGES = [0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5]  # m/s
@@ -205,7 +214,8 @@ class MonopedHopLevelEnv(MonopedEnv):
 
     @property
     def horizon_s(self) -> float:
-        """The episode's sim time: nsteps x running_step (robot_rl.task.make_env gives the env its TimeLimit's nsteps)."""
+        """The episode's sim time: nsteps x running_step (robot_rl.task.make_env gives the env its TimeLimit's
+        nsteps)."""
         return self.params.nsteps * self.running_step
 
     def _velocity_frame(self) -> tuple[float, float, float, tuple[float, float]]:
@@ -276,7 +286,7 @@ class MonopedHopLevelEnv(MonopedEnv):
     def _observe(self, readings: Readings) -> np.ndarray:
         vx, vy, speed, (ux, uy) = self._velocity_frame()
         roll, pitch, yaw = base_rpy(readings)
-        cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
+        cr, sr, sp = math.cos(roll), math.sin(roll), math.sin(pitch)
         lean_x, lean_y = sp * cr, -sr  # the base's z axis turned by roll, then pitch (sxyz); yaw below
         world_lean = (math.cos(yaw) * lean_x - math.sin(yaw) * lean_y, math.sin(yaw) * lean_x + math.cos(yaw) * lean_y)
         lean = world_lean[0] * ux + world_lean[1] * uy
