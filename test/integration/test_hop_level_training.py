@@ -47,7 +47,7 @@ def test_three_hop_level_episodes_over_ros_then_evaluate(ros_master, tmp_path):
     assert float(rows[-1]["sim_time"]) == pytest.approx(sum(float(row["time_upright_s"]) for row in rows))
     qtable = json.loads((run / "qtable.json").read_text())
     assert qtable["task"] == "MonopedHopLevel-v0" and qtable["episode"] == NEPISODES
-    assert qtable["state_key"]["format"] == "hopper_training.hop_level_state_key/1"
+    assert qtable["state_key"]["format"] == "hopper_training.hop_level_state_key/2"
     assert {action for _, action, _ in qtable["qlearn"]["q"]} <= set(range(6)) and qtable["qlearn"]["q"]
     summary = json.loads((run / "summary.json").read_text())
     assert summary["completed"] is True and summary["env_steps"] == sum(int(row["steps"]) for row in rows)
