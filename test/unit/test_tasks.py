@@ -16,10 +16,11 @@ ALL_TASKS = [*moving_cube_training.TASKS, *hopper_training.TASKS]
 IDS = [task.env_id for task in ALL_TASKS]
 
 
-def test_three_tasks_are_registered():
-    assert IDS == ["MovingCubeOneDiskWalk-v0", "Monoped-v0", "MonopedHop-v0"]
+def test_the_four_tasks_are_registered():
+    assert IDS == ["MovingCubeOneDiskWalk-v0", "Monoped-v0", "MonopedHop-v0", "MonopedHopLevel-v0"]
     assert all(TASKS[env_id] is task for env_id, task in zip(IDS, ALL_TASKS))
     assert find_task(hopper_training.TASKS, "hop").env_id == "MonopedHop-v0"
+    assert find_task(hopper_training.TASKS, "hop_in_place").env_id == "MonopedHopLevel-v0"
 
 
 @pytest.mark.parametrize("task", ALL_TASKS, ids=IDS)

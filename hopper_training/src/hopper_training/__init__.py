@@ -1,6 +1,7 @@
-"""The monoped hopper's training: the Monoped-v0 (stay up) and MonopedHop-v0 tasks, Q-learning.
+"""The monoped hopper's training: the Monoped-v0 (stay up), MonopedHop-v0 and MonopedHopLevel-v0 (hop in place,
+one decision per hop) tasks, Q-learning.
 
-Importing this package registers both with gymnasium:
+Importing this package registers them with gymnasium:
 `gymnasium.make("Monoped-v0", backend="ros" | "direct")`.
 """
 from typing import Any
@@ -8,7 +9,8 @@ from typing import Any
 from robot_rl.task import TaskSpec, register_tasks
 
 from .hop import HOP
+from .hop_level import HOP_LEVEL
 from .monoped_env import STAY_UP
 
-TASKS: list[TaskSpec[Any]] = [STAY_UP, HOP]
+TASKS: list[TaskSpec[Any]] = [STAY_UP, HOP, HOP_LEVEL]
 register_tasks(*TASKS)

@@ -21,6 +21,8 @@ contact and the knee's rate:
   along world x and y (T_s: the last stance time; Raibert's neutral point plus a speed correction; b: each
   touchdown adds k_i times the flight's mean speed error, which removes the steady speed error), the
   hips solving for the body's tilt and yaw (the hips cannot hold the yaw of a point foot: it drifts).
+  Hooks for the hop-level task (hop_level.py): `placement_offset` (m, world x, y) is added to the foot
+  placement, and HopGains.speed_feedback False leaves out k_v (v - v_d) and b (the neutral point remains).
 
 The leg's kinematics and masses (LegModel) are hopper_description/urdf/monoped.urdf's; test_hop_controller.py
 checks them against PyBullet's. Roll, pitch and yaw are sxyz Euler angles of the IMU's orientation, as tf's.
@@ -151,6 +153,8 @@ class HopGains:
     stance_time: float = 0.15        # s: T_s before the first stance is measured
     max_foot_offset: float = 0.25    # m: the largest foot placement from under the centre of mass
     speed: tuple[float, float] = (0.0, 0.0)  # m/s commanded along world x and y
+    speed_feedback: bool = True      # False: no k_v (v - v_d) and no per-hop sum b (the hop-level task learns them)
+    neutral_point: bool = True       # False: no v T_s / 2 either (the foot goes under the centre of mass + offset)
 
 
 def euler_sxyz(quaternion: Sequence[float]) -> tuple[float, float, float]:
@@ -210,6 +214,7 @@ class HopController:
     _touchdown_time: float = 0.0
     _lost_contact_time: float | None = None
     placement_bias: list[float] = field(default_factory=lambda: [0.0, 0.0])  # m along world x, y: the per-hop sum
+    placement_offset: list[float] = field(default_factory=lambda: [0.0, 0.0])  # m along world x, y, set from outside
     _flight_energy: list[float] = field(default_factory=list)  # z + vz^2 / 2g of this flight's readings
     _flight_velocity: list[tuple[float, float]] = field(default_factory=list)  # vx, vy of this flight's readings
 
@@ -232,10 +237,12 @@ class HopController:
             self._flight_energy.append(reading.position[2] + reading.linear_velocity[2] ** 2 / (2.0 * GRAVITY))
             vx, vy = reading.linear_velocity[0], reading.linear_velocity[1]
             self._flight_velocity.append((vx, vy))
-            world_target = (foot_placement(vx, g.speed[0], self.stance_time, g.placement_kv, g.max_foot_offset)
-                            + self.placement_bias[0],
-                            foot_placement(vy, g.speed[1], self.stance_time, g.placement_kv, g.max_foot_offset)
-                            + self.placement_bias[1])
+            kv = g.placement_kv if g.speed_feedback else 0.0
+            stance_time = self.stance_time if g.neutral_point else 0.0
+            world_target = (foot_placement(vx, g.speed[0], stance_time, kv, g.max_foot_offset)
+                            + self.placement_bias[0] + self.placement_offset[0],
+                            foot_placement(vy, g.speed[1], stance_time, kv, g.max_foot_offset)
+                            + self.placement_bias[1] + self.placement_offset[1])
             target = (math.cos(yaw) * world_target[0] + math.sin(yaw) * world_target[1],
                       -math.sin(yaw) * world_target[0] + math.cos(yaw) * world_target[1])
             haa, hfe = hips_for_foot(self.model, target, (q[0], q[1], g.landing_knee), rotation)
@@ -295,7 +302,7 @@ class HopController:
                                                  (g.landing_knee + 0.1, 0.0))
                 self._flight_energy.clear()
                 if self._flight_velocity:
-                    for axis in (0, 1):
+                    for axis in (0, 1) if g.speed_feedback else ():
                         error = sum(v[axis] for v in self._flight_velocity) / len(self._flight_velocity) - g.speed[axis]
                         self.placement_bias[axis] = clamp(self.placement_bias[axis] + g.placement_ki * error,
                                                           (-g.max_placement_bias, g.max_placement_bias))

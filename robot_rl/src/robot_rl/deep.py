@@ -50,7 +50,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 from .ledger import DEFAULT_HOOKS, Learner, RunLedger, TrainingHooks, TrainingState, format_duration, restored_state
 from .params import MAX_COUNT, ParamError, Params, TaskParams, param
 from .results import EpisodeRecord, RunDirectory, RunFileError, aggregate
-from .task import Episode, TaskSpec
+from .task import Episode, TaskSpec, episode_duration
 from .vector import EnvWorkers, as_env_actions, make_env_workers, worker_seeds
 
 if TYPE_CHECKING:
@@ -460,7 +460,7 @@ class DeepTrainer(Learner):
         if self.schedule is not None:
             self.schedule.progress = (self.state.episode + 1) / self.params.nepisodes
         episode = Episode(steps=steps, return_=return_, terminated=terminated,
-                          duration=steps * self.params.running_step, info=info)
+                          duration=episode_duration(info, steps, self.params.running_step), info=info)
         self.ledger.episode_done(episode, return_, self._exploration(), env_index)
 
     def _count_steps(self) -> int:

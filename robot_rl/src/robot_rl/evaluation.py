@@ -44,7 +44,7 @@ from pybullet_sim.client import SimConnectionError
 from .agents import agent_of, checkpoint_of
 from .params import ParamError
 from .results import RunDirectory, aggregate
-from .task import Episode, TaskSpec, find_task, make_env
+from .task import Episode, TaskSpec, episode_duration, find_task, make_env
 from .video import VideoRecorder
 
 MAX_VIDEO_SIDE = 4096
@@ -114,7 +114,8 @@ def run_episodes(env: Any, policy: Callable[[np.ndarray], Any], episodes: int, t
             if terminated or truncated:
                 break
         returns.append(total)
-        episode = Episode(steps=steps, return_=total, terminated=terminated, duration=steps * running_step, info=info)
+        episode = Episode(steps=steps, return_=total, terminated=terminated,
+                          duration=episode_duration(info, steps, running_step), info=info)
         for name, value in task.metrics(episode).items():
             metrics[name].append(value)
     return {**aggregate({"return": returns}), **aggregate(metrics)}

@@ -90,6 +90,12 @@ class Episode:
     info: Mapping[str, Any]       # the last step's info
 
 
+def episode_duration(info: Mapping[str, Any], steps: int, running_step: float) -> float:
+    """An episode's sim seconds: steps x running_step, or the last info's "episode_time" where a task's steps
+    differ in length (the monoped's hop-level task: one step per hop)."""
+    return float(info.get("episode_time", steps * running_step))
+
+
 @dataclass(frozen=True)
 class TaskSpec(Generic[P]):
     name: str                                   # `task:=` in the launch files; the default YAML is config/<name>.yaml
@@ -157,7 +163,10 @@ def find_task(tasks: list[TaskSpec[Any]], name: str) -> TaskSpec[Any]:
 
 def make_env(spec: TaskSpec[P], *, params: P | None = None, backend: Any = "direct", seed: int | None = None,
              max_episode_steps: int | None = None, **kwargs: Any) -> gymnasium.Env[Any, Any]:
-    """gymnasium.make of the task, truncated at params.nsteps unless `max_episode_steps` says otherwise."""
+    """gymnasium.make of the task, truncated at params.nsteps unless `max_episode_steps` says otherwise (the env's
+    params then have that nsteps too: a task whose steps differ in length truncates by sim time from it)."""
     params = params if params is not None else spec.default_params()
-    return gymnasium.make(spec.env_id, max_episode_steps=max_episode_steps or params.nsteps, backend=backend,
+    if max_episode_steps is not None and max_episode_steps != params.nsteps:
+        params = params.with_changes("max_episode_steps", nsteps=max_episode_steps)
+    return gymnasium.make(spec.env_id, max_episode_steps=params.nsteps, backend=backend,
                           params=params, seed=seed, **kwargs)

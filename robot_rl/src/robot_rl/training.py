@@ -25,7 +25,7 @@ from .ledger import DEFAULT_HOOKS, Learner, RunLedger, TrainingHooks, TrainingSt
 from .params import Params, TaskParams
 from .qlearn import QLearn
 from .results import EpisodeRecord, RunDirectory
-from .task import Episode, TaskSpec
+from .task import Episode, TaskSpec, episode_duration
 
 if TYPE_CHECKING:
     from .agents import AgentSpec
@@ -128,8 +128,8 @@ class QLearningTrainer(Learner):
             if terminated or truncated:
                 break
             state = next_state
-        return Episode(steps=steps, return_=cumulated, terminated=terminated, duration=steps * self.running_step,
-                       info=info), highest
+        return Episode(steps=steps, return_=cumulated, terminated=terminated,
+                       duration=episode_duration(info, steps, self.running_step), info=info), highest
 
     def _back_to_episode_start(self) -> None:
         """The Q-learner as it was when the episode that could not finish started."""

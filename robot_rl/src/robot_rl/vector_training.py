@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from .task import Episode
+from .task import Episode, episode_duration
 from .training import QLearningTrainer
 from .vector import RobotVectorEnv, WorkerRestarted
 
@@ -89,7 +89,7 @@ class VectorQLearningTrainer(QLearningTrainer):
                     continue
                 keys[i] = self.state_key.key(observation)  # after the reset: the next episode's first
                 episode = Episode(steps=steps[i], return_=returns[i], terminated=terminated,
-                                  duration=steps[i] * self.running_step, info=final[1])
+                                  duration=episode_duration(final[1], steps[i], self.running_step), info=final[1])
                 ended = (episode, highest[i], qlearn.epsilon, i)
                 returns[i], steps[i], highest[i] = 0.0, 0, -math.inf
                 checkpoint_due = ledger.checkpoint_due()

@@ -1,0 +1,163 @@
+"""Unit tests of the monoped's hop-level task (MonopedHopLevel-v0) on the direct backend (no ROS master): a step
+ends at the next decision point (lift-off), the actions' offsets and thrusts, the state key's bins, the
+truncation at the horizon, gymnasium's env checker; and the controller's hooks for it."""
+import dataclasses
+import math
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+from hopper_training.controller import HopController, HopGains, HopInput, Phase
+from hopper_training.hop_level import (
+    HOP_LEVEL,
+    SPEED_EDGES,
+    HopLevelStateKey,
+    action_meaning,
+    controller_params,
+    do_nothing_action,
+    offsets,
+    thrust_knees,
+)
+from robot_rl.params import ParamError
+from robot_rl.task import make_env
+
+PARAMS = HOP_LEVEL.default_params()
+
+
+@pytest.fixture
+def env():
+    made = make_env(HOP_LEVEL, params=PARAMS, backend="direct", seed=0)
+    yield made
+    made.close()
+
+
+def test_the_actions_are_offsets_times_thrusts_and_do_nothing_is_offset_0_default_thrust():
+    assert offsets(PARAMS) == pytest.approx([-0.02, 0.0, 0.02, 0.04, 0.06, 0.08])
+    assert thrust_knees(PARAMS) == [0.0]
+    assert action_meaning(PARAMS, do_nothing_action(PARAMS)) == pytest.approx((0.0, 0.0))
+    two = PARAMS.with_changes("test", offset_min=-0.02, offset_max=0.06, offset_levels=5, thrust_min=-0.2,
+                              thrust_levels=2)
+    meanings = [value for a in range(10) for value in action_meaning(two, a)]
+    assert meanings == pytest.approx([v for o in (-0.02, 0.0, 0.02, 0.04, 0.06) for t in (-0.2, 0.0) for v in (o, t)])
+    assert action_meaning(two, do_nothing_action(two)) == pytest.approx((0.0, 0.0)) and do_nothing_action(two) == 3
+
+
+def test_params_without_a_do_nothing_action_are_refused():
+    with pytest.raises(ParamError, match="no offset level is 0"):
+        PARAMS.with_changes("test", offset_min=0.01)
+    with pytest.raises(ParamError, match="'default_thrust' .* is not one of the thrust levels"):
+        PARAMS.with_changes("test", thrust_min=-0.2, thrust_levels=2, default_thrust=-0.1)
+
+
+def test_the_state_key_bins_speed_and_the_sign_of_the_lean_along_the_velocity():
+    key = HopLevelStateKey(PARAMS)
+
+    def of(speed, lean):
+        return key.key(np.array([0.0, 0.0, speed, lean, 0.0, 0.0, 0.9, 0.3], dtype=np.float32))
+    speeds = [0.0, 0.03, 0.07, 0.12, 0.17, 0.25, 0.4, 2.0]  # one in each speed bin
+    keys = {of(s, lean) for s in speeds for lean in (-0.2, 0.2)}
+    assert len(keys) == (len(SPEED_EDGES) + 1) * 2 == 16
+    assert of(0.06, 0.01) == of(0.09, 0.3) != of(0.11, 0.3)
+    assert of(0.0, 0.01) != of(0.0, -0.01)
+
+
+def test_a_step_runs_the_hop_cycle_from_lift_off_to_the_next_lift_off(env):
+    unwrapped = env.unwrapped
+    env.reset(seed=1)
+    controller, phases = unwrapped.controller, []
+    update = controller.update
+
+    def watched(reading):
+        targets = update(reading)
+        phases.append(controller.phase)
+        return targets
+    controller.update = watched
+    for _ in range(4):
+        phases.clear()
+        observation, reward, terminated, truncated, info = env.step(do_nothing_action(PARAMS))
+        assert not (terminated or truncated)
+        # one control period per update, and the step ends on the update that entered FLIGHT from stance
+        assert len(phases) == round(info["hop_time"] / PARAMS.running_step)
+        assert phases[-1] is Phase.FLIGHT and phases[-2] is not Phase.FLIGHT
+        assert Phase.THRUST in phases and phases.count(Phase.FLIGHT) < len(phases)
+        assert 0.05 < info["hop_time"] < PARAMS.max_hop_s  # the first, from standing, is the shortest
+        velocities = unwrapped.velocities  # the last 5 readings', all in the air
+        assert len(velocities) == 5 and not unwrapped.readings.contact("lowerleg_contactsensor_sensor").contacts
+        speed = math.hypot(*np.mean(velocities, axis=0))
+        assert observation[2] == pytest.approx(speed, rel=1e-5)
+        assert reward == pytest.approx(PARAMS.alive_reward * info["hop_time"] - PARAMS.speed_weight * speed, abs=1e-5)
+
+
+def test_the_action_sets_the_placement_offset_along_the_velocity_and_the_thrust(env):
+    unwrapped = env.unwrapped
+    observation, _ = env.reset(seed=2)
+    env.step(do_nothing_action(PARAMS))
+    env.step(do_nothing_action(PARAMS))  # from the first touchdown on, the thrust is the action's
+    velocity = np.mean(unwrapped.velocities, axis=0)
+    direction = velocity / math.hypot(*velocity)
+    action = 4  # offset 0.06
+    unwrapped._apply_action(action, unwrapped.readings)
+    assert unwrapped.controller.placement_offset == pytest.approx(list(0.06 * direction))
+    assert unwrapped.controller.thrust_knee == 0.0
+    _, _, _, _, info = env.step(action)
+    assert (info["offset"], info["thrust_knee"]) == pytest.approx((0.06, 0.0))
+
+
+def test_a_thrust_action_sets_the_next_stances_thrust():
+    params = PARAMS.with_changes("test", thrust_min=-0.2, thrust_levels=2)
+    made = make_env(HOP_LEVEL, params=params, backend="direct", seed=0)
+    try:
+        made.reset(seed=2)
+        made.step(do_nothing_action(params))
+        made.step(2)  # offset 0, thrust -0.2 (from the first touchdown on, the thrust is the action's)
+        assert made.unwrapped.controller.thrust_knee == pytest.approx(-0.2)
+        made.step(3)
+        assert made.unwrapped.controller.thrust_knee == 0.0
+    finally:
+        made.close()
+
+
+def test_the_episode_is_truncated_at_the_horizon_in_sim_time():
+    made = make_env(HOP_LEVEL, params=controller_params(PARAMS), backend="direct", seed=0, max_episode_steps=600)
+    try:
+        made.reset(seed=3)
+        times, truncated = [], False
+        while not truncated:
+            _, _, terminated, truncated, info = made.step(do_nothing_action(PARAMS))
+            assert not terminated
+            times.append(info["episode_time"])
+        assert times[-1] == pytest.approx(0.6, abs=1e-6) and all(t < 0.6 for t in times[:-1])
+        assert len(times) < 600 / 50  # steps are hops, not control periods
+    finally:
+        made.close()
+
+
+def test_gymnasiums_env_checker_passes(env):
+    check_env(env.unwrapped, skip_render_check=True)
+    assert env.action_space == gymnasium.spaces.Discrete(6)
+
+
+def _flight_reading(vx):
+    return HopInput(time=1.0, joint_position=(0.0, 0.4, -0.6), joint_velocity=(0.0, 0.0, 0.0),
+                    orientation=(0.0, 0.0, 0.0, 1.0), angular_velocity=(0.0, 0.0, 0.0), position=(0.0, 0.0, 1.0),
+                    linear_velocity=(vx, 0.0, 0.0), contact=False)
+
+
+def test_the_controllers_hooks_leave_it_unchanged_by_default_and_take_the_feedback_out():
+    def hips(gains, offset=(0.0, 0.0)):
+        controller = HopController(gains)
+        controller._started = True  # in the air, not the standing start
+        controller.placement_offset = list(offset)
+        return controller.update(_flight_reading(0.3))[:2]
+    default = hips(HopGains())
+    assert hips(HopGains(speed_feedback=True, neutral_point=True)) == default
+    no_feedback = hips(HopGains(speed_feedback=False))
+    bare = hips(HopGains(speed_feedback=False, neutral_point=False))
+    assert no_feedback != pytest.approx(default) and bare != pytest.approx(no_feedback)
+    # with the neutral point and feedback off, an offset of v T_s/2 + k_v v along x is the controller's placement
+    gains = HopGains()
+    assert hips(HopGains(speed_feedback=False, neutral_point=False),
+                (0.3 * gains.stance_time / 2.0 + gains.placement_kv * 0.3, 0.0)) == pytest.approx(default)
+    assert dataclasses.replace(gains).speed_feedback and gains.neutral_point
