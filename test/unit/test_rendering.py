@@ -4,6 +4,7 @@ renders the same frames (test/integration/test_rendering_over_ros.py)."""
 import subprocess
 import warnings
 
+import gymnasium
 import imageio.v2 as imageio
 import imageio_ffmpeg
 import numpy as np
@@ -165,3 +166,38 @@ def test_a_video_needs_rgb_array_frames(tmp_path):
             VideoRecorder(env, tmp_path / "x.mp4")
     finally:
         env.close()
+
+
+class PeriodsPerStep(gymnasium.Env):
+    """An env whose every step runs `periods` control periods of 1 ms (as the monoped's hop-level task does)."""
+
+    multi_period_steps = True
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 1000.0}
+    observation_space = gymnasium.spaces.Box(0.0, 1.0, (1,))
+    action_space = gymnasium.spaces.Discrete(2)
+
+    def __init__(self, periods):
+        self.periods, self.period_hooks, self.render_mode = periods, [], "rgb_array"
+
+    def reset(self, *, seed=None, options=None):
+        return np.zeros(1, np.float32), {}
+
+    def step(self, action):
+        for _ in range(self.periods):
+            for hook in self.period_hooks:
+                hook()
+        return np.zeros(1, np.float32), 0.0, False, False, {}
+
+    def render(self):
+        return np.zeros((24, 32, 3), np.uint8)
+
+
+def test_an_env_whose_steps_run_many_periods_is_recorded_by_its_periods(tmp_path):
+    recorder = VideoRecorder(PeriodsPerStep(periods=100), tmp_path / "hops.mp4")
+    recorder.reset()
+    for _ in range(3):
+        recorder.step(0)
+    recorder.close()
+    every = frame_every(1000.0)
+    assert recorder.fps == pytest.approx(1000.0 / every) and recorder.fps <= 30.0
+    assert recorder.frames == 1 + 300 // every, "frames in real time within the steps, not one per step"

@@ -20,12 +20,15 @@ render_mode "rgb_array" makes render() return the frame of the sim's camera that
 needs no physics of its own); "human" opens PyBullet's window on the direct backend (the camera
 follows the robot, and each step waits so that sim time runs no faster than wall time); over ROS the
 sim node's window (gui:=true) or rviz (rviz:=true) shows the robot. metadata["render_fps"] is
-1 / running_step: one frame per env step.
+1 / running_step: one frame per control period. A task whose env step runs several control periods
+(`multi_period_steps`, e.g. one step a hop) calls every function in `period_hooks` after each period,
+so that a recorder can take frames in real time within a step.
 """
 from __future__ import annotations
 
 import abc
 import time
+from collections.abc import Callable
 from typing import Any, ClassVar, Generic, TypeVar
 
 import gymnasium
@@ -48,6 +51,7 @@ class RobotEnv(gymnasium.Env[np.ndarray, Any], Generic[P], abc.ABC):
     """A task's env: subclasses set `task` and implement the hooks below."""
 
     task: ClassVar[TaskSpec[Any]]
+    multi_period_steps: ClassVar[bool] = False  # True: a step runs several control periods, calling period_hooks
     metadata: dict[str, Any] = {"render_modes": ["rgb_array", "human"]}  # + render_fps, per instance
     action_space: spaces.Discrete | spaces.Box
     observation_space: spaces.Box
@@ -84,6 +88,7 @@ class RobotEnv(gymnasium.Env[np.ndarray, Any], Generic[P], abc.ABC):
                              f"s, more than the {MAX_PHYSICS_STEPS} one sim step may take")
         self.settle_steps = round(self._settle_time() / time_step)
         self.readings: Readings | None = None
+        self.period_hooks: list[Callable[[], None]] = []
         self.closed = False
         self.action_space, self.observation_space = self._spaces()
 

@@ -5,8 +5,10 @@ Like gymnasium's RecordVideo, it takes a frame after each reset and after steps,
 in real time at a frame rate a player handles: one frame every `frame_every` steps, the fewest that
 keep render_fps / frame_every at most MAX_FPS. The cube (a step of 0.06 s of sim time) gets every step
 at 16.7 frames/s; the monoped (20 ms steps, render_fps 50) every 2nd step at 25 frames/s. An
-episode of n steps thus gives 1 + n // frame_every frames. Only the first `episodes` episodes after
-the wrapper is made are recorded; the file is complete once the wrapper is closed.
+episode of n steps thus gives 1 + n // frame_every frames. An env whose step runs several control
+periods (`multi_period_steps`: the monoped's hop-level task, a step a hop) is counted by its periods
+instead, through its `period_hooks`, so its video is in real time too. Only the first `episodes`
+episodes after the wrapper is made are recorded; the file is complete once the wrapper is closed.
 """
 from __future__ import annotations
 
@@ -41,9 +43,12 @@ class VideoRecorder(gymnasium.Wrapper[Any, Any, Any, Any]):
         self.fps = render_fps / self.frame_every
         self.frames = 0                  # written so far
         self.episodes_recorded = 0       # started while recording
-        self._steps = 0
+        self._steps = 0                  # steps (or control periods) of the episode being recorded
         self._recording = False
         self._writer: Any = None
+        self._by_periods = bool(getattr(env.unwrapped, "multi_period_steps", False))
+        if self._by_periods:
+            env.unwrapped.period_hooks.append(self._count)  # type: ignore[attr-defined]
 
     def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
         result = super().reset(**kwargs)
@@ -56,11 +61,16 @@ class VideoRecorder(gymnasium.Wrapper[Any, Any, Any, Any]):
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         result = super().step(action)
+        if not self._by_periods:
+            self._count()
+        return result  # type: ignore[return-value]  # the wrapped env's 5-tuple
+
+    def _count(self) -> None:
+        """One more step (or control period): a frame every frame_every of them."""
         if self._recording:
             self._steps += 1
             if self._steps % self.frame_every == 0:
                 self._write_frame()
-        return result  # type: ignore[return-value]  # the wrapped env's 5-tuple
 
     def _write_frame(self) -> None:
         frame = self.env.render()
