@@ -11,7 +11,8 @@ def demo(*args, cwd):
     return subprocess.run([str(REPO / "ws"), "demo", *args], cwd=cwd, capture_output=True, text=True, timeout=600)
 
 
-@pytest.mark.parametrize(("robot", "metric", "expected"), [("cube", "success_rate", 1.0)])
+@pytest.mark.parametrize(("robot", "metric", "expected"), [("cube", "success_rate", 1.0),
+                                                            ("hopper", "upright_whole_horizon_rate", 1.0)])
 def test_the_shipped_policy_plays_into_a_video_and_does_its_task(tmp_path, robot, metric, expected):
     result = demo(robot, "out.mp4", cwd=tmp_path)  # a relative path is the caller's folder's
     assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]

@@ -16,7 +16,7 @@ from pybullet_sim.config import ConfigError, parse_robot_config
 from robot_rl.task import make_env
 from robot_rl.video import VideoRecorder, frame_every
 
-CUBE, STAY_UP, HOP = (*moving_cube_training.TASKS, *hopper_training.TASKS)
+CUBE, STAY_UP, HOP, _ = (*moving_cube_training.TASKS, *hopper_training.TASKS)
 ODOMETRY = "p3d_base_controller"
 # Actions that move each robot: the cube spins its wheel up (the reaction rolls it along y), the
 # monoped swings its hip (it tips over).
@@ -193,10 +193,12 @@ class PeriodsPerStep(gymnasium.Env):
 
 
 def test_an_env_whose_steps_run_many_periods_is_recorded_by_its_periods(tmp_path):
-    recorder = VideoRecorder(PeriodsPerStep(periods=100), tmp_path / "hops.mp4")
+    env = PeriodsPerStep(periods=100)
+    recorder = VideoRecorder(env, tmp_path / "hops.mp4")
     recorder.reset()
     for _ in range(3):
         recorder.step(0)
+    env.step(0)  # a step not through the recorder (evaluate.py's random policy on the same env) is not recorded
     recorder.close()
     every = frame_every(1000.0)
     assert recorder.fps == pytest.approx(1000.0 / every) and recorder.fps <= 30.0

@@ -181,6 +181,7 @@ HOP_LEVEL = TaskSpec(
 
 class MonopedHopLevelEnv(MonopedEnv):
     task = HOP_LEVEL
+    multi_period_steps = True  # a step is a hop of many control periods: period_hooks after each
     params: HopLevelParams
 
     def __init__(self, *args: Any, **kwargs: Any):
@@ -268,6 +269,8 @@ class MonopedHopLevelEnv(MonopedEnv):
                 self.backend.set_command(name, target)
             self.targets = list(targets)
             readings = self.backend.step(self.physics_steps)
+            for hook in self.period_hooks:
+                hook()
             odometry = readings.odometry(ODOMETRY_SENSOR)
             position = odometry.position
             self.velocities.append((odometry.linear_velocity[0], odometry.linear_velocity[1]))

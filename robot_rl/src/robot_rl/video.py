@@ -47,8 +47,9 @@ class VideoRecorder(gymnasium.Wrapper[Any, Any, Any, Any]):
         self._recording = False
         self._writer: Any = None
         self._by_periods = bool(getattr(env.unwrapped, "multi_period_steps", False))
+        self._stepping = False           # inside this wrapper's step: periods of other callers' steps are not ours
         if self._by_periods:
-            env.unwrapped.period_hooks.append(self._count)  # type: ignore[attr-defined]
+            env.unwrapped.period_hooks.append(self._on_period)  # type: ignore[attr-defined]
 
     def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
         result = super().reset(**kwargs)
@@ -60,10 +61,18 @@ class VideoRecorder(gymnasium.Wrapper[Any, Any, Any, Any]):
         return result
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
-        result = super().step(action)
+        self._stepping = True
+        try:
+            result = super().step(action)
+        finally:
+            self._stepping = False
         if not self._by_periods:
             self._count()
         return result  # type: ignore[return-value]  # the wrapped env's 5-tuple
+
+    def _on_period(self) -> None:
+        if self._stepping:
+            self._count()
 
     def _count(self) -> None:
         """One more step (or control period): a frame every frame_every of them."""
