@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import select
 import subprocess
+from pathlib import Path
 
 import pytest
 
@@ -19,6 +20,18 @@ def ros_master(tmp_path):
         yield master
     finally:
         master.close()
+
+
+@pytest.fixture
+def master(tmp_path):
+    """A private master; at the end, nothing may be left running against it (the leftovers are named)."""
+    ros = RosMaster(tmp_path / "ros", cwd=REPO)
+    try:
+        yield ros
+        assert ros.leftovers() == [], "processes left running: " + ", ".join(
+            Path(f"/proc/{pid}/cmdline").read_text().replace("\0", " ")[:120] for pid in ros.leftovers())
+    finally:
+        ros.close()
 
 
 @pytest.fixture

@@ -13,7 +13,7 @@ import yaml
 
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
 from workspace_tools.paths import REPO, ROSTESTS
-from workspace_tools.processes import Processes, RosMaster, launch_args
+from workspace_tools.processes import Processes, RosMaster, launch_args, wait_for
 
 CONFIG = ONE_DISK_WALK.config_path
 HEADER = "episode,steps,return,epsilon,sim_time,wall_time,y_distance,success"
@@ -50,17 +50,6 @@ def episode_numbers(csv_path: Path) -> list:
     lines = complete_lines(csv_path)
     assert lines[0] == HEADER
     return [int(line.split(",")[0]) for line in lines[1:]]
-
-
-def wait_for(predicate, timeout: float, what: str, interval: float = 0.01):
-    end = time.monotonic() + timeout
-    while True:
-        value = predicate()
-        if value:
-            return value
-        if time.monotonic() > end:
-            raise AssertionError(f"{what} did not happen within {timeout} s")
-        time.sleep(interval)  # bounded poll of files written by another process
 
 
 # -- a short training run, shared by two tests ---------------------------------------------------

@@ -22,7 +22,7 @@ import yaml
 from hopper_training.monoped_env import STAY_UP
 from moving_cube_training.one_disk_walk import MOVING_CUBE, ONE_DISK_WALK
 from workspace_tools.paths import PROGRAMS, REPO
-from workspace_tools.processes import Processes, RosMaster, free_port, processes_using
+from workspace_tools.processes import Processes, RosMaster, free_port, processes_using, wait_for
 
 TRAIN = ["rosrun", "workspace_tools", "roslaunch_checked.py"]  # what ./ws run starts
 CUBE_TRAINING = [*TRAIN, "moving_cube_training", "main.launch", "video:=false"]
@@ -33,17 +33,6 @@ INTERRUPTED = 130
 
 
 # -- helpers --------------------------------------------------------------------------------------
-
-@pytest.fixture
-def master(tmp_path):
-    """A private master; at the end, nothing may be left running against it."""
-    ros = RosMaster(tmp_path / "ros", cwd=REPO)
-    try:
-        yield ros
-        assert ros.leftovers() == [], "processes left running: " + ", ".join(
-            Path(f"/proc/{pid}/cmdline").read_text().replace("\0", " ")[:120] for pid in ros.leftovers())
-    finally:
-        ros.close()
 
 
 def cube_config(path: Path, **changes) -> Path:
@@ -59,16 +48,6 @@ def one_line(output: str, text: str) -> str:
     assert len(lines) == 1, f"expected one line with {text!r}, got {len(lines)}:\n{output[-4000:]}"
     assert "Traceback" not in output, output[-4000:]
     return lines[0]
-
-
-def wait_for(predicate, timeout: float, what: str, interval: float = 0.02):
-    """Bounded poll, for what has no notification (a file another process writes, the master's state)."""
-    end = time.monotonic() + timeout
-    while not (value := predicate()):
-        if time.monotonic() > end:
-            raise AssertionError(f"{what} did not happen within {timeout} s")
-        time.sleep(interval)
-    return value
 
 
 def node_pid(master: RosMaster, name: str) -> int:
@@ -202,7 +181,7 @@ def test_unknown_task_names_the_known_ones(master, tmp_path):
     result = master.run([*HOPPER_TRAINING, "task:=fly", f"config:={STAY_UP.config_path}",
                          f"results_dir:={tmp_path / 'results'}"], timeout=120)
     assert result.returncode == 1
-    one_line(result.stdout + result.stderr, "unknown task 'fly' (known: stay_up, hop)")
+    one_line(result.stdout + result.stderr, "unknown task 'fly' (known: stay_up, hop, hop_in_place)")
 
 
 @pytest.mark.parametrize("args, expected", [

@@ -10,7 +10,6 @@ import os
 import re
 import signal
 import subprocess
-import time
 import xmlrpc.client
 from pathlib import Path
 from typing import Any
@@ -20,33 +19,11 @@ import rosgraph
 import yaml
 
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
-from workspace_tools.paths import REPO
-from workspace_tools.processes import RosMaster
+from workspace_tools.processes import RosMaster, wait_for
 
 TRAIN = ["rosrun", "workspace_tools", "roslaunch_checked.py"]  # what ./ws run starts
 SIM = ["roslaunch", "pybullet_sim", "cube_sim.launch", "robot_state_publisher:=false"]
 STEP_SERVICE = "/pybullet_sim/step_packed"
-
-
-@pytest.fixture
-def master(tmp_path):
-    """A private master; at the end, nothing may be left running against it."""
-    ros = RosMaster(tmp_path / "ros", cwd=REPO)
-    try:
-        yield ros
-        assert ros.leftovers() == [], f"processes left running: {ros.leftovers()}"
-    finally:
-        ros.close()
-
-
-def wait_for(predicate, timeout: float, what: str, interval: float = 0.05):
-    """Bounded poll, for what has no notification (a log another process writes, the master's state)."""
-    end = time.monotonic() + timeout
-    while not (value := predicate()):
-        if time.monotonic() > end:
-            raise AssertionError(f"{what} did not happen within {timeout} s")
-        time.sleep(interval)
-    return value
 
 
 def training_launch(tmp_path: Path) -> Path:

@@ -11,9 +11,6 @@ import sys
 
 import pytest
 
-from workspace_tools.paths import REPO
-from workspace_tools.processes import RosMaster
-
 PROBE = '''
 import json, math, sys
 import rospy
@@ -81,16 +78,6 @@ out["joint_positions"], out["joint_velocities"] = packed.values[2:2 + joints], p
 sim.close()
 print(json.dumps(out))
 '''
-
-
-@pytest.fixture
-def master(tmp_path):
-    ros = RosMaster(tmp_path / "ros", cwd=REPO)
-    try:
-        yield ros
-        assert ros.leftovers() == [], f"processes left running: {ros.leftovers()}"
-    finally:
-        ros.close()
 
 
 @pytest.mark.parametrize("launch, model", [("cube_sim.launch", "moving_cube"), ("hopper_sim.launch", "monoped")],

@@ -10,7 +10,7 @@ import yaml
 
 from hopper_training.monoped_env import STAY_UP
 from workspace_tools.paths import PROGRAMS
-from workspace_tools.processes import launch_args, stop
+from workspace_tools.processes import launch_args, stop, wait_for
 
 RECORDER = PROGRAMS / "record_rewards.py"
 
@@ -20,15 +20,6 @@ NEPISODES, NSTEPS = 3, 100
 
 def _approx(value):
     return pytest.approx(value, rel=1e-9, abs=1e-12)
-
-
-def wait_for(condition, timeout, what):
-    """Poll a condition (bounded): for things that have no notification, like a file or the master."""
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"{what} did not happen within {timeout} s")
-        time.sleep(0.05)
 
 
 def subscribed(master, node, topics):

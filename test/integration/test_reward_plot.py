@@ -10,16 +10,7 @@ import yaml
 from PIL import Image, ImageGrab
 
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
-from workspace_tools.processes import launch_args
-
-
-def wait_for(condition, timeout: float, what: str):
-    deadline = time.monotonic() + timeout
-    while not (value := condition()):
-        if time.monotonic() > deadline:
-            raise AssertionError(f"{what} did not happen within {timeout} s")
-        time.sleep(0.1)  # bounded poll of files, the master and the screen
-    return value
+from workspace_tools.processes import launch_args, wait_for
 
 
 def subscribed(master, topics) -> bool:

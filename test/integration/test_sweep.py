@@ -16,7 +16,7 @@ import yaml
 
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
 from workspace_tools.paths import REPO
-from workspace_tools.processes import RosMaster, launch_args
+from workspace_tools.processes import RosMaster, launch_args, wait_for
 from workspace_tools.ray_cluster import LoopbackCluster
 
 SWEEP_TIMEOUT = 600.0
@@ -90,16 +90,6 @@ def training_processes(cluster: LoopbackCluster) -> list[str]:
         if any(name in command for name in TRAINING_PROCESSES):
             found.append(f"{pid}: {command[:200]}")
     return found
-
-
-def wait_for(predicate, timeout: float, what: str):
-    import time
-    end = time.monotonic() + timeout
-    while not (value := predicate()):
-        if time.monotonic() > end:
-            raise AssertionError(f"{what} did not happen within {timeout} s")
-        time.sleep(0.05)  # bounded poll of files and processes of other processes
-    return value
 
 
 def test_a_three_seed_sweep_writes_three_runs_each_as_the_seed_alone_and_one_table(cluster, tmp_path):

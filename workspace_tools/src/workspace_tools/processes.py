@@ -8,12 +8,16 @@ import os
 import signal
 import subprocess
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TypeVar
 
 import rosgraph
 
 from robot_rl.private_sim import free_port, stop_process
 from workspace_tools.launch_reaper import processes_with
+
+T = TypeVar("T")
 
 
 def processes_using(uri: str) -> list[int]:
@@ -91,6 +95,17 @@ class RosMaster(Processes):
                 os.kill(pid, signal.SIGKILL)
             except ProcessLookupError:
                 pass
+
+
+def wait_for(predicate: Callable[[], T], timeout: float, what: str, interval: float = 0.02) -> T:
+    """Poll `predicate` until it returns something true, and return that; AssertionError naming `what` after
+    `timeout` s. For what has no notification: a file or log another process writes, the master's state."""
+    end = time.monotonic() + timeout
+    while not (value := predicate()):
+        if time.monotonic() > end:
+            raise AssertionError(f"{what} did not happen within {timeout} s")
+        time.sleep(interval)
+    return value
 
 
 def launch_args(**args: object) -> list[str]:
