@@ -96,21 +96,25 @@ class LegModel:
         return self.base_mass + self.hip_mass + self.thigh_mass + self.shank_mass
 
     def points(self, q: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
-        """The foot centre and the whole robot's centre of mass in the base frame at joint angles q."""
+        """The foot centre and the whole robot's centre of mass in the base frame at joint angles q.
+        Scalar arithmetic (the controller calls this ~10 times a control period): haa turns the leg's points,
+        all in the base's x-z plane before the turn, about the -x axis through (0, 0, haa_z)."""
         haa, hfe, kfe = q
-        hip = np.array([0.0, 0.0, self.haa_z - self.hip_length])
-        thigh = np.array([-math.sin(hfe), 0.0, -math.cos(hfe)]) * self.segment
-        shank = np.array([-math.sin(hfe + kfe), 0.0, -math.cos(hfe + kfe)]) * self.segment
-        knee, foot = hip + thigh, hip + thigh + shank
-        pivot = np.array([0.0, 0.0, self.haa_z])
+        hip_z = self.haa_z - self.hip_length
+        thigh_x, thigh_z = -math.sin(hfe) * self.segment, -math.cos(hfe) * self.segment
+        shank_x, shank_z = -math.sin(hfe + kfe) * self.segment, -math.cos(hfe + kfe) * self.segment
+        knee_x, knee_z = thigh_x, hip_z + thigh_z
+        foot_x, foot_z = knee_x + shank_x, knee_z + shank_z
         c, s = math.cos(-haa), math.sin(-haa)
-        turn = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])  # haa turns the leg about -x
+        pivot = self.haa_z
 
-        def turned(point: np.ndarray) -> np.ndarray:
-            return pivot + turn @ (point - pivot)
-        leg_moment = (self.hip_mass * turned(hip + np.array([0.0, 0.0, self.hip_length / 2.0]))
-                      + self.thigh_mass * turned(hip + thigh / 2.0) + self.shank_mass * turned(knee + shank / 2.0))
-        return turned(foot), leg_moment / self.mass  # the base's centre of mass is the base frame's origin
+        def turned(x: float, z: float) -> tuple[float, float, float]:
+            return x, -s * (z - pivot), pivot + c * (z - pivot)
+        parts = ((self.hip_mass, turned(0.0, hip_z + self.hip_length / 2.0)),
+                 (self.thigh_mass, turned(thigh_x / 2.0, hip_z + thigh_z / 2.0)),
+                 (self.shank_mass, turned(knee_x + shank_x / 2.0, knee_z + shank_z / 2.0)))
+        com = [sum(mass * point[i] for mass, point in parts) / self.mass for i in range(3)]
+        return np.array(turned(foot_x, foot_z)), np.array(com)  # the base's centre of mass is the origin
 
     def foot_from_com(self, q: Sequence[float]) -> np.ndarray:
         foot, com = self.points(q)
