@@ -226,8 +226,9 @@ def with_controller_joint(joint: str) -> dict:
     (CUBE_URDF, {**CUBE_SIM, "seed": -1}, "parameter ~seed must be >= 0, got -1"),
     (CUBE_URDF, {**CUBE_SIM, "time_step": 1e30}, "parameter ~time_step must be <= 1, got 1e+30"),
     (CUBE_URDF, {**CUBE_SIM, "command_timeout": 1e30}, "parameter ~command_timeout must be <= 3600, got 1e+30"),
+    (CUBE_URDF, {**CUBE_SIM, "spawn": {"yaw": 90.0}}, "parameter /pybullet_sim/spawn/yaw must be <= 6.28319, got 90.0"),
 ], ids=["missing_description", "broken_xml", "not_urdf", "unknown_joint", "mistyped_param", "unknown_sensor",
-        "negative_seed", "absurd_time_step", "absurd_command_timeout"])
+        "negative_seed", "absurd_time_step", "absurd_command_timeout", "spawn_yaw_in_degrees"])
 def test_bad_sim_input_stops_the_sim_node_with_one_line(master, description, params, expected):
     result = start_sim(master, params, description)
     assert result.returncode == 1
