@@ -23,6 +23,7 @@ from hopper_training.monoped_env import STAY_UP
 from moving_cube_training.one_disk_walk import MOVING_CUBE, ONE_DISK_WALK
 from workspace_tools.paths import PROGRAMS, REPO
 from workspace_tools.processes import Processes, RosMaster, free_port, processes_using, wait_for
+from workspace_tools.training_launch import write_cube_training_launch
 
 TRAIN = ["rosrun", "workspace_tools", "roslaunch_checked.py"]  # what ./ws run starts
 CUBE_TRAINING = [*TRAIN, "moving_cube_training", "main.launch", "video:=false"]
@@ -225,8 +226,9 @@ def with_controller_joint(joint: str) -> dict:
     (CUBE_URDF, {**CUBE_SIM, "seed": -1}, "parameter ~seed must be >= 0, got -1"),
     (CUBE_URDF, {**CUBE_SIM, "time_step": 1e30}, "parameter ~time_step must be <= 1, got 1e+30"),
     (CUBE_URDF, {**CUBE_SIM, "command_timeout": 1e30}, "parameter ~command_timeout must be <= 3600, got 1e+30"),
+    (CUBE_URDF, {**CUBE_SIM, "spawn": {"yaw": 90.0}}, "parameter /pybullet_sim/spawn/yaw must be <= 6.28319, got 90.0"),
 ], ids=["missing_description", "broken_xml", "not_urdf", "unknown_joint", "mistyped_param", "unknown_sensor",
-        "negative_seed", "absurd_time_step", "absurd_command_timeout"])
+        "negative_seed", "absurd_time_step", "absurd_command_timeout", "spawn_yaw_in_degrees"])
 def test_bad_sim_input_stops_the_sim_node_with_one_line(master, description, params, expected):
     result = start_sim(master, params, description)
     assert result.returncode == 1
@@ -247,20 +249,8 @@ def test_a_urdf_that_is_not_xml_stops_training_with_the_sims_error_only(master, 
     <arg name="joint_states" value="/moving_cube/joint_states"/>
   </include>
 </launch>""")
-    training = tmp_path / "training.launch"
-    training.write_text(f"""<launch>
-  <include file="$(find robot_rl)/launch/train.launch">
-    <arg name="sim_launch" value="{sim_launch}"/><arg name="node_name" value="movingcube_gym"/>
-    <arg name="task" value="one_disk_walk"/><arg name="config" value="{ONE_DISK_WALK.config_path}"/>
-    <arg name="nepisodes" value=""/><arg name="resume" value="false"/><arg name="seed" value="0"/>
-    <arg name="results_dir" value="{tmp_path / 'results'}"/><arg name="quiet" value="false"/>
-    <arg name="gui" value="false"/><arg name="robot_state_publisher" value="false"/>
-    <arg name="rviz" value="false"/><arg name="video" value="false"/>
-    <arg name="agent" value="qlearn"/><arg name="agent_config" value=""/><arg name="max_steps" value="0"/>
-    <arg name="envs" value="1"/>
-  </include>
-  <node pkg="moving_cube_training" type="start_training.py" name="movingcube_gym" output="screen" required="true"/>
-</launch>""")
+    training = write_cube_training_launch(tmp_path / "training.launch", sim_launch, ONE_DISK_WALK.config_path,
+                                          tmp_path / "results")
     result = master.run([*TRAIN, str(training)], timeout=120)
     output = result.stdout + result.stderr
     assert result.returncode == 1, output[-3000:]

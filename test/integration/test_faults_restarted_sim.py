@@ -20,6 +20,7 @@ import yaml
 
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
 from workspace_tools.processes import RosMaster, wait_for
+from workspace_tools.training_launch import write_cube_training_launch
 
 TRAIN = ["rosrun", "workspace_tools", "roslaunch_checked.py"]  # what ./ws run starts
 SIM = ["roslaunch", "pybullet_sim", "cube_sim.launch", "robot_state_publisher:=false"]
@@ -36,23 +37,7 @@ def training_launch(tmp_path: Path) -> Path:
     no_sim = tmp_path / "no_sim.launch"
     no_sim.write_text('<launch><arg name="paused"/><arg name="seed"/><arg name="gui"/>'
                       '<arg name="robot_state_publisher"/><arg name="rviz"/></launch>')
-    launch = tmp_path / "training.launch"
-    launch.write_text(f"""<launch>
-  <arg name="resume" default="false"/><arg name="nepisodes" default=""/>
-  <include file="$(find robot_rl)/launch/train.launch">
-    <arg name="sim_launch" value="{no_sim}"/><arg name="node_name" value="movingcube_gym"/>
-    <arg name="task" value="one_disk_walk"/><arg name="config" value="{config}"/>
-    <arg name="nepisodes" value="$(arg nepisodes)"/><arg name="resume" value="$(arg resume)"/>
-    <arg name="seed" value="0"/>
-    <arg name="results_dir" value="{tmp_path / 'results'}"/><arg name="quiet" value="false"/>
-    <arg name="gui" value="false"/><arg name="robot_state_publisher" value="false"/>
-    <arg name="rviz" value="false"/><arg name="video" value="false"/>
-    <arg name="agent" value="qlearn"/><arg name="agent_config" value=""/><arg name="max_steps" value="0"/>
-    <arg name="envs" value="1"/>
-  </include>
-  <node pkg="moving_cube_training" type="start_training.py" name="movingcube_gym" output="screen" required="true"/>
-</launch>""")
-    return launch
+    return write_cube_training_launch(tmp_path / "training.launch", no_sim, config, tmp_path / "results")
 
 
 def sim_address(master: RosMaster) -> str | None:

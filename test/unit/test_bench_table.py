@@ -121,3 +121,40 @@ def test_the_distributed_rows_give_each_transport_and_their_ratio(capsys):
     assert cube_cell(lines, "vector env, ros, N = 2: Ray actors / pipe workers") == "0.90"
     ranges = [line.split("|")[2].strip() for line in lines if line.startswith("|   Ray / pipe: lowest-highest")]
     assert ranges == ["0.70-0.85", "0.88-0.95"], "N = 1, then N = 2"
+
+
+# -- --sections: only the sections run are printed ------------------------------------------------
+def gazebo_only() -> dict:
+    """A report of `--sections gazebo`, as orchestrate() writes it."""
+    robots = {robot: {"running_step": step, "config_running_step": step, "gazebo_style_rtf1_steps_per_s": rtf1,
+                      "gazebo_style_max_speed_steps_per_s": fast, "per_repetition": {"gazebo_1": [rtf1],
+                                                                                     "gazebo_0": [fast]}}
+              for robot, step, rtf1, fast in (("cube", 0.06, 15.9, 120.4), ("hopper", 0.03, 31.0, 150.2))}
+    return {"machine": "test", "date": "2026-11-25T19:00:00+00:00", "load_average_at_end": 0.5, "repetitions": 2,
+            "sections": ["gazebo"], **robots}
+
+
+def test_a_run_of_one_section_prints_its_rows_only(capsys):
+    rows = [line for line in table(capsys, gazebo_only()) if line.startswith("| ")]
+    assert [row.split("|")[1].strip() for row in rows] == [
+        "", "running_step (s)", "Gazebo-style step at RTF 1, steps/s", "Gazebo-style step at max speed, steps/s"]
+    assert rows[2].split("|")[2:4] == ["      15.9 ", "      31.0 "]
+
+
+def test_a_page_of_one_section_has_its_rows_and_no_other_sections_heading():
+    text = bench.markdown(gazebo_only(), "./ws bench --sections gazebo --markdown")
+    rows = [line for line in text.splitlines() if line.startswith("| ")]
+    assert rows[1:] == ["| running_step (s) | 0.06 | 0.03 |", "| Gazebo-style step at RTF 1, steps/s | 15.9 | 31.0 |",
+                        "| Gazebo-style step at max speed, steps/s | 120.4 | 150.2 |"]
+    assert "## What made lockstep fast" not in text and text.endswith("\n") and not text.endswith("\n\n")
+
+
+def test_a_run_without_figures_per_robot_prints_no_table(capsys):
+    data = {**gazebo_only(), "sections": ["training"], "cube_100_episodes_wall_s": 41.5}
+    for robot in bench.ROBOTS:
+        data[robot] = {"running_step": 0.06, "config_running_step": 0.06, "per_repetition": {}}
+    lines = table(capsys, data)
+    assert not any(line.startswith("|") for line in lines), lines
+    assert "cube: 100 training episodes over ROS in 41.5 s" in lines
+    page_text = bench.markdown(data, "./ws bench --sections training --markdown")
+    assert "|" not in page_text and "100 episodes of cube training over ROS took 41.5 s." in page_text

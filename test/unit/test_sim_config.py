@@ -1,4 +1,6 @@
 """Unit tests for pybullet_sim.config.parse_robot_config (no ROS, no physics)."""
+import math
+
 import pytest
 
 from pybullet_sim.config import JOINT_STATE_CONTROLLER, VELOCITY_CONTROLLER, ConfigError, parse_robot_config
@@ -113,3 +115,30 @@ def test_where_prefixes_the_parameter_path(cube_params):
     del cube_params["robot_namespace"]
     with pytest.raises(ConfigError, match="/pybullet_sim/robot_namespace"):
         parse_robot_config(cube_params, where="/pybullet_sim")
+
+
+@pytest.mark.parametrize("section, key, value, expected", [
+    ("spawn", "z", 1e30, "parameter ~/spawn/z must be <= 1e+06, got 1e+30"),
+    ("spawn", "x", -2e6, "parameter ~/spawn/x must be >= -1e+06, got -2000000.0"),
+    ("spawn", "yaw", 90.0, "parameter ~/spawn/yaw must be <= 6.28319, got 90.0"),
+    ("spawn", "roll", -7.0, "parameter ~/spawn/roll must be >= -6.28319, got -7.0"),
+    ("pid", "p", 1e9, f"parameter ~/controllers/{WHEEL}/pid/p must be <= 1e+06, got 1000000000.0"),
+    ("pid", "i", 2e6, f"parameter ~/controllers/{WHEEL}/pid/i must be <= 1e+06, got 2000000.0"),
+    ("pid", "d", -1e30, f"parameter ~/controllers/{WHEEL}/pid/d must be >= -1e+06, got -1e+30"),
+    ("noise", "gaussian_noise", 5.0, f"parameter ~/sensors/{P3D}/gaussian_noise must be <= 1, got 5.0"),
+])
+def test_absurd_spawn_pose_gains_and_noise_are_refused_naming_the_bound(cube_params, section, key, value, expected):
+    where = {"spawn": cube_params["spawn"], "pid": cube_params["controllers"][WHEEL]["pid"],
+             "noise": cube_params["sensors"][P3D]}[section]
+    where[key] = value
+    assert config_error(cube_params) == expected
+
+
+def test_values_at_the_bounds_are_taken(cube_params):
+    cube_params["spawn"].update(x=1e6, y=-1e6, yaw=2 * math.pi, roll=-2 * math.pi)
+    cube_params["controllers"][WHEEL]["pid"].update(p=1e6, i=-1e6, d=1e6)
+    cube_params["sensors"][P3D]["gaussian_noise"] = 1.0
+    config = parse_robot_config(cube_params)
+    assert config.spawn_xyz[:2] == (1e6, -1e6) and config.spawn_rpy[::2] == (-2 * math.pi, 2 * math.pi)
+    assert (config.controllers[0].pid.p, config.controllers[0].pid.i) == (1e6, -1e6)
+    assert config.sensors[0].gaussian_noise == 1.0

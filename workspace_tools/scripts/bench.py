@@ -2,7 +2,8 @@
 """./ws bench: env steps per second of both robots, over ROS in lockstep, in-process, and the
 tutorials' Gazebo-style step, on the real nodes; the scaling of vector envs; a deep agent's training
 over ROS against direct. Prints a table and writes bench_results.json; --markdown also writes the table
-as docs/performance.md (with the machine, the date and what made lockstep fast).
+as docs/performance.md (with the machine, the date and, with the lockstep section, what made lockstep
+fast). Only the sections run are printed.
 
 Every figure is the median of --reps repetitions, each in fresh processes (a new master, a new sim
 node, a new client); within a repetition every configuration runs once, so the ROS and direct runs
@@ -548,7 +549,8 @@ def ceiling_warnings(report: dict) -> list[str]:
 
 
 def table_rows(report: dict) -> list[list[str]]:
-    """The table's rows: a label, then each robot's cell ("" where the report lacks the figure)."""
+    """The table's rows that have a figure: a label, then each robot's cell ("" where the report lacks it); none
+    when the run measured nothing per robot (only the training or sweeps sections)."""
     rows: list[list[str]] = []
     _row(rows, report, "running_step (s)", lambda r: r["running_step"], "{:g}")
     _row(rows, report, "one env over ROS (lockstep), env steps/s", lambda r: r["ros_lockstep_steps_per_s"], "{:.0f}")
@@ -602,7 +604,8 @@ def table_rows(report: dict) -> list[list[str]]:
     _row(rows, report, "Gazebo-style step at RTF 1, steps/s", lambda r: r["gazebo_style_rtf1_steps_per_s"], "{:.1f}")
     _row(rows, report, "Gazebo-style step at max speed, steps/s", lambda r: r["gazebo_style_max_speed_steps_per_s"],
          "{:.1f}")
-    return rows
+    figures = [row for row in rows[1:] if any(row[1:])]  # a section not run has no figures
+    return [rows[0], *figures] if figures else []
 
 
 def sweeps_line(sweeps: dict) -> str:
@@ -616,9 +619,11 @@ def sweeps_line(sweeps: dict) -> str:
 def print_table(report: dict) -> None:
     print(f"\n{report['machine']}\n{report['date']}, median of {report['repetitions']} repetitions, load average "
           f"{report['load_average_at_end']:.2f} at the end\n")
-    print(f"| {'':52} | " + " | ".join(f"{robot:>9}" for robot in ROBOTS) + " |")
-    print(f"|{'-' * 54}|" + "|".join("-" * 10 + ":" for _ in ROBOTS) + "|")
-    for label, *cells in table_rows(report):
+    rows = table_rows(report)
+    if rows:
+        print(f"| {'':52} | " + " | ".join(f"{robot:>9}" for robot in ROBOTS) + " |")
+        print(f"|{'-' * 54}|" + "|".join("-" * 10 + ":" for _ in ROBOTS) + "|")
+    for label, *cells in rows:
         print(f"| {label:52} | " + " | ".join(f"{cell:>9}" for cell in cells) + " |")
     if "cube_100_episodes_wall_s" in report:
         print(f"cube: 100 training episodes over ROS in {report['cube_100_episodes_wall_s']:.1f} s")
@@ -648,18 +653,19 @@ LOCKSTEP_FAST = """\
 
 
 def markdown(report: dict, command: str) -> str:
-    """docs/performance.md from a report: how and where it was measured, the table (rows with a figure),
-    a note when the machine was loaded, and what made lockstep fast."""
+    """docs/performance.md from a report: how and where it was measured, the table (if the run measured anything
+    per robot), a note when the machine was loaded, and (with the lockstep section) what made lockstep fast."""
     date = datetime.datetime.fromisoformat(report["date"]).astimezone(datetime.UTC)
     reps = report["repetitions"]
     lines = ["# Performance", "", f"Written by `{command}` on {date:%Y-%m-%d %H:%M} UTC.", "",
              f"Machine: {report['machine']}; load average {report['load_average_at_end']:.2f} at the end.", "",
              f"Every figure is the median of {reps} repetition{'s' if reps > 1 else ''}, each in fresh processes (a "
              f"new master, sim node and client), with random actions and episode resets included. Regenerate this "
-             f"page with `./ws bench --markdown`.", "",
-             "| | " + " | ".join(ROBOTS) + " |", "|---|" + "---:|" * len(ROBOTS)]
-    lines += ["| " + " | ".join([label.strip(), *cells]) + " |"
-              for label, *cells in table_rows(report) if any(cells)]
+             f"page with `./ws bench --markdown`."]
+    rows = table_rows(report)
+    if rows:
+        lines += ["", "| | " + " | ".join(ROBOTS) + " |", "|---|" + "---:|" * len(ROBOTS)]
+        lines += ["| " + " | ".join([label.strip(), *cells]) + " |" for label, *cells in rows]
     if "cube_100_episodes_wall_s" in report:
         lines += ["", f"100 episodes of cube training over ROS took {report['cube_100_episodes_wall_s']:.1f} s."]
     if "sweeps" in report:
@@ -671,10 +677,9 @@ def markdown(report: dict, command: str) -> str:
     elif "scaling" not in report.get("sections", ["scaling"]):
         lines += ["", "Note: this run had no scaling section, whose two independent processes tell whether the "
                       "machine had two free cores."]
-    lines += ["", "## What made lockstep fast", "", LOCKSTEP_FAST]
-    return "\n".join(lines)
-
-
+    if "lockstep" in report.get("sections", SECTIONS):
+        lines += ["", "## What made lockstep fast", "", LOCKSTEP_FAST.rstrip("\n")]
+    return "\n".join(lines) + "\n"
 
 
 def _running_step(text: str) -> tuple[str, float]:

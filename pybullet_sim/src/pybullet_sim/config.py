@@ -11,7 +11,7 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 from .sensors import SENSOR_KINDS
-from .validation import ConfigError, param
+from .validation import MAX_GAIN, MAX_NOISE, MAX_POSITION, MAX_SPAWN_ANGLE, ConfigError, param
 
 __all__ = ["ConfigError", "RobotConfig", "parse_robot_config"]
 
@@ -99,8 +99,10 @@ def parse_robot_config(params: Mapping[str, Any], where: str = "~") -> RobotConf
     namespace = namespace.rstrip("/")
     spawn = param(params, "spawn", dict, top, {})
     spawn_where = f"{where}/spawn/"
-    xyz = tuple(param(spawn, k, float, spawn_where, 0.0) for k in ("x", "y", "z"))
-    rpy = tuple(param(spawn, k, float, spawn_where, 0.0) for k in ("roll", "pitch", "yaw"))
+    xyz = tuple(param(spawn, k, float, spawn_where, 0.0, minimum=-MAX_POSITION, maximum=MAX_POSITION)
+                for k in ("x", "y", "z"))
+    rpy = tuple(param(spawn, k, float, spawn_where, 0.0, minimum=-MAX_SPAWN_ANGLE, maximum=MAX_SPAWN_ANGLE)
+                for k in ("roll", "pitch", "yaw"))
 
     controllers = []
     joint_state_rate = joint_state_controller = None
@@ -122,8 +124,9 @@ def parse_robot_config(params: Mapping[str, Any], where: str = "~") -> RobotConf
                               f"(supported: {JOINT_STATE_CONTROLLER}, {VELOCITY_CONTROLLER}, {POSITION_CONTROLLER})")
         pid = param(entry, "pid", dict, c_where + "/", {})
         p_where = f"{c_where}/pid/"
-        gains = PidGains(p=param(pid, "p", float, p_where), i=param(pid, "i", float, p_where, 0.0),
-                         d=param(pid, "d", float, p_where, 0.0),
+        gains = PidGains(p=param(pid, "p", float, p_where, minimum=-MAX_GAIN, maximum=MAX_GAIN),
+                         i=param(pid, "i", float, p_where, 0.0, minimum=-MAX_GAIN, maximum=MAX_GAIN),
+                         d=param(pid, "d", float, p_where, 0.0, minimum=-MAX_GAIN, maximum=MAX_GAIN),
                          i_clamp=param(pid, "i_clamp", float, p_where, 0.0, minimum=0.0))
         joint = param(entry, "joint", str, c_where + "/")
         controllers.append(JointControllerConfig(name=name, type=ctype, joint=joint, pid=gains))
@@ -146,7 +149,7 @@ def parse_robot_config(params: Mapping[str, Any], where: str = "~") -> RobotConf
             name=name, type=stype, link=param(entry, "link", str, s_where + "/"), topic=topic,
             frame_id=param(entry, "frame_id", str, s_where + "/"),
             update_rate=param(entry, "update_rate", float, s_where + "/", minimum=0.0, exclusive_minimum=True),
-            gaussian_noise=param(entry, "gaussian_noise", float, s_where + "/", 0.0, minimum=0.0)))
+            gaussian_noise=param(entry, "gaussian_noise", float, s_where + "/", 0.0, minimum=0.0, maximum=MAX_NOISE)))
     camera = param(params, "camera", dict, top, {})
     c_where, default = f"{where}/camera", CameraConfig()
     known = [f.name for f in fields(CameraConfig)]

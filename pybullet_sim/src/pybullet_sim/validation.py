@@ -8,7 +8,8 @@ Gazebo takes any finite number for a pose, a twist, gravity or a time step; PyBu
 all of them: a position of 1e30 m loses every digit below 1e14 m, a speed beyond the World's velocity
 clamp is cut to it without a word, gravity of 1e5 m/s^2 pushes the robot through the ground, and a time
 step of 1e30 s makes a sim time no ROS message can carry. So a request beyond these bounds is refused,
-naming the field and the bound, and nothing changes (pybullet_sim/README.md, "Bad input").
+naming the field and the bound, and nothing changes (pybullet_sim/README.md, "Bad input"). The robot's sim
+config is held to bounds of the same kind: its spawn pose, PID gains and sensor noise.
 """
 from __future__ import annotations
 
@@ -23,6 +24,9 @@ MAX_SPEED = 1000.0  # m/s and rad/s per axis: the World's velocity clamp (Bullet
 MAX_GRAVITY = 1000.0  # m/s^2 per axis (about 100 g): the robots still rest on the ground at the 1 ms step
 MAX_TIME_STEP = 1.0  # s: a physics step longer than this is no simulation; sim time stays within ROS's 2**32 s
 MAX_WAIT = 3600.0  # s: the longest timeout a param may give (Python's waits refuse much longer ones)
+MAX_SPAWN_ANGLE = 2 * math.pi  # rad: the spawn's roll, pitch, yaw within a turn either way (90 there: degrees?)
+MAX_GAIN = 1.0e6  # a PID gain p, i or d, either sign: 1e5 x the configs' largest (10); effort is clamped anyway
+MAX_NOISE = 1.0  # a sensor's gaussian_noise (std dev in m, rad, m/s, rad/s, m/s^2): beyond it a reading hides the state
 _WHAT = {float: "float (a finite number)", int: "int", bool: "bool", str: "a non-empty string", dict: "a dictionary"}
 
 
@@ -50,7 +54,7 @@ def param(params: Mapping[str, Any], key: str, kind: type[T], prefix: str, defau
             or (isinstance(value, float) and not math.isfinite(value)) or (kind is str and not value)):
         raise ConfigError(f"parameter {name} must be {_WHAT[kind]}, got {value!r}")
     if minimum is not None and (value < minimum or (exclusive_minimum and value == minimum)):  # type: ignore[operator]
-        raise ConfigError(f"parameter {name} must be {'>' if exclusive_minimum else '>='} {minimum}, got {value!r}")
+        raise ConfigError(f"parameter {name} must be {'>' if exclusive_minimum else '>='} {minimum:g}, got {value!r}")
     if maximum is not None and value > maximum:  # type: ignore[operator]
         raise ConfigError(f"parameter {name} must be <= {maximum:g}, got {value!r}")
     if choices and value not in choices:

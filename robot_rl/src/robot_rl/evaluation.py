@@ -23,6 +23,7 @@ params as that policy needs them; its JSON has "policy": NAME and NAME: {...} wi
 time, at most 30 frames/s, from the sim's camera that follows the robot) and adds "video": {"path",
 "episodes", "frames", "fps"} to the JSON; recording changes none of the numbers.
 The direct backend (default) needs nothing running; `--backend ros` needs the task's sim node.
+A lost sim, or a sim state that is no longer finite, ends it with one line and exit code 1 (either backend).
 Every robot package's evaluate.py is this, for its own tasks.
 """
 from __future__ import annotations
@@ -42,6 +43,7 @@ import yaml
 from pybullet_sim.client import SimConnectionError
 
 from .agents import agent_of, checkpoint_of
+from .backends import SimStateError
 from .params import ParamError
 from .results import RunDirectory, aggregate
 from .task import Episode, TaskSpec, episode_duration, find_task, make_env
@@ -260,7 +262,7 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
         parser.exit(2, f"evaluate.py: {error}\n")
     try:
         report = evaluate(run, args.episodes, horizon_s, args.backend, args.seed, video, initial_tilt)
-    except SimConnectionError as error:
+    except (SimConnectionError, SimStateError) as error:  # SimStateError: the direct backend's non-finite readings
         parser.exit(1, f"evaluate.py: {error}\n")
     print(json.dumps(report))
     return 0
@@ -284,7 +286,7 @@ def _main_scripted(parser: argparse.ArgumentParser, args: argparse.Namespace, ta
             init_ros_node(node_name)
         report = evaluate_scripted(task, args.policy, scripted, params, args.episodes, horizon_s, args.backend,
                                    args.seed, args.speed)
-    except SimConnectionError as error:
+    except (SimConnectionError, SimStateError) as error:
         parser.exit(1, f"evaluate.py: {error}\n")
     print(json.dumps(report))
     return 0

@@ -120,7 +120,7 @@ class RayEnvWorkers(EnvWorkers):
         self._actors: list[Any] = []
         self._refs: list[Any] = [None] * n
         self.worker_info: list[dict[str, Any]] = [{} for _ in range(n)]
-        try:
+        with self._starting(start_timeout):
             if not ray.is_initialized():
                 ray_cluster.connect(cluster)
                 self._connected = True
@@ -132,12 +132,6 @@ class RayEnvWorkers(EnvWorkers):
             for i, actor in enumerate(self._actors):
                 self._refs[i] = actor.describe.remote()
                 self._pending[i] = True
-            ready = self.receive_all(start_timeout, "start")
-        except BaseException:
-            self.close()
-            raise
-        self.observation_space, self.action_space, self.metadata = ready[0][:3]
-        self.worker_info = [reply[3] for reply in ready]
 
     def _where(self, i: int) -> str:
         info = self.worker_info[i]

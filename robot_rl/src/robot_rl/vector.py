@@ -275,7 +275,7 @@ class EnvWorkers:
         self.closed = False
         self.failed = False  # a worker failed: close() keeps its logs where the error said they are
         context = multiprocessing.get_context("spawn")
-        try:
+        with self._starting(start_timeout):
             for i in range(n):
                 recipe = WorkerRecipe(task, self.params, backend, self.seeds[i], ros_timeout, self.log_dir,
                                       self._own_log_dir, max_episode_steps, env_kwargs)
@@ -290,12 +290,20 @@ class EnvWorkers:
                 self._pollers[i].register(parent.fileno(), select.POLLIN)
                 self._processes.append(process)
                 self._pending[i] = True
+
+    @contextmanager
+    def _starting(self, start_timeout: float) -> Iterator[None]:
+        """Around starting the workers, each of which then owes its first reply: wait for those replies (bounded)
+        and take the env's spaces and each worker's info from them; on any failure, close what started."""
+        try:
+            yield
             ready = self.receive_all(start_timeout, "start")
         except BaseException:
             self.close()
             raise
         self.observation_space, self.action_space, self.metadata = ready[0][:3]
-        # Per worker: its pid, its master's URI (None when direct) and the pids of its master and sim node.
+        # Per worker: its pid, its master's URI (None when direct) and the pids of its master and sim node
+        # (Ray actors: also their node).
         self.worker_info: list[dict[str, Any]] = [reply[3] for reply in ready]
 
     def _failure(self, message: str) -> WorkerError:
