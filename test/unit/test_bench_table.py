@@ -109,11 +109,12 @@ def test_the_page_ends_with_what_made_lockstep_fast_and_no_history():
     assert sum(line.startswith("|---") for line in lines) == 1, "one table: no earlier runs"
 
 
-def test_the_distributed_rows_give_each_transport_and_their_ratio(capsys):
+def test_the_distributed_rows_give_each_transport_their_ratio_and_the_recovery_time(capsys):
     data = report(3, [1.9, 1.9, 1.9])
     pipe, ray = {"1": 700.0, "2": 1200.0}, {"1": 560.0, "2": 1080.0}
     data["cube"]["distributed"] = {"envs": [1, 2], "steps_per_s": {"pipe": pipe, "ray": ray},
-                                   "ratio_ray_to_pipe": {"1": 0.8, "2": 0.9}}
+                                   "ratio_ray_to_pipe": {"1": 0.8, "2": 0.9}, "node_loss_recovery_s": 15.64,
+                                   "actors_start_s": 2.21}
     data["cube"]["per_repetition"].update(ray_to_pipe_1=[0.8, 0.7, 0.85], ray_to_pipe_2=[0.9, 0.88, 0.95])
     lines = table(capsys, data)
     assert cube_cell(lines, "vector env, ros, N = 2, Ray actors, env steps/s") == "1080"
@@ -121,3 +122,5 @@ def test_the_distributed_rows_give_each_transport_and_their_ratio(capsys):
     assert cube_cell(lines, "vector env, ros, N = 2: Ray actors / pipe workers") == "0.90"
     ranges = [line.split("|")[2].strip() for line in lines if line.startswith("|   Ray / pipe: lowest-highest")]
     assert ranges == ["0.70-0.85", "0.88-0.95"], "N = 1, then N = 2"
+    assert cube_cell(lines, "node lost: its Ray actor steps again after, s") == "15.6"
+    assert cube_cell(lines, "Ray actors, N = 2: start (masters, sims), s") == "2.2"

@@ -34,7 +34,10 @@ Sections (--sections, default all):
 - distributed: the gymnasium vector env's env steps/s with its workers as Ray actors (robot_rl.ray_workers)
   against pipe workers, at N = 1 and 2, over ROS, on a one-node Ray cluster of this machine's cores started
   for each repetition (workspace_tools.ray_cluster), its daemons running during both; the ratio Ray / pipe.
-  At N = 1 the difference is a Ray actor call's round trip per env step.
+  At N = 1 the difference is a Ray actor call's round trip per env step. Then a node's loss and its recovery
+  time: on a two-node cluster (workspace_tools.ray_cluster) with one actor on each node, the second node killed
+  by PID as a machine lost, the wall time from the kill to the first env step of the actor Ray restarted on the
+  head (worker_recovery).
 - sweeps: `./ws sweep cube` (workspace_tools.sweep, a private local Ray) of one trial against two trials
   run at once, each trial SWEEP_EPISODES cube training episodes and SWEEP_EVAL_EPISODES evaluation
   episodes; trials per hour of wall time, Ray's start and Tune's overhead included; the ratio two / one.
@@ -75,6 +78,7 @@ SWEEP_EPISODES, SWEEP_EVAL_EPISODES = 400, 5
 PERFORMANCE_PAGE = Path(__file__).resolve().parents[2] / "docs" / "performance.md"
 SCALING_ENVS = (1, 2, 4)
 DISTRIBUTED_ENVS = (1, 2)
+RECOVERY_STEPS_BEFORE_LOSS = 50  # vector steps of the two actors before the second node is killed
 
 
 @dataclass(frozen=True)
@@ -219,6 +223,53 @@ def worker_vector(robot: str, backend: str, n: int, steps: int, running_step: fl
     finally:
         env.close()
     return {"steps_per_s": vector_steps * n / elapsed, "cpu_ms_per_step": 1000.0 * cpu / (vector_steps * n)}
+
+
+def worker_recovery(robot: str, steps: int, running_step: float, folder: str) -> dict:
+    """A node lost under a run: a two-node LoopbackCluster (the head 2 CPUs, the second 1) with a gymnasium vector
+    env of 2 Ray actors, one on each node; after `steps` vector steps the second node is killed as a machine lost
+    (every process of it, by PID), and the vector env steps on. Wall seconds from the kill to the first step the
+    actor restarted on the head completes (Ray finds the node dead, restarts the actor, whose env starts a master
+    and a sim node and resets; the vector env's step says WorkerRestarted, and the next step is the new actor's).
+    Also the wall seconds the two actors took to start (each its master, sim node and env), for scale: the rest of
+    the recovery is Ray finding the node dead (its health checks). RuntimeError if any process of the cluster is
+    left after it ends."""
+    import numpy as np
+
+    from robot_rl.vector import WorkerRestarted, make_vector_env
+    from workspace_tools.ray_cluster import LoopbackCluster, process_name
+    cluster = LoopbackCluster(Path(folder), nodes=2, cpus_per_node=1, head_cpus=2)
+    try:
+        cluster.connect()
+        started = time.perf_counter()
+        env = make_vector_env(ROBOTS[robot].task, 2, backend="ros", seed=0, params=_params(robot, running_step),
+                              cluster=cluster.address)
+        start = time.perf_counter() - started
+        try:
+            if len({worker["node_id"] for worker in env.workers.worker_info}) != 2:
+                raise RuntimeError(f"the 2 actors were not placed one on each node: {env.workers.worker_info}")
+            rng = np.random.default_rng(0)
+            n_actions = int(env.single_action_space.n)  # type: ignore[attr-defined]
+            env.reset(seed=0)
+            for _ in range(steps):
+                env.step(rng.integers(n_actions, size=2))
+            killed = time.perf_counter()
+            cluster.kill_node(1)
+            try:
+                env.step(rng.integers(n_actions, size=2))
+            except WorkerRestarted:
+                pass
+            else:
+                raise RuntimeError("the vector env stepped on after its second node was killed")
+            env.step(rng.integers(n_actions, size=2))
+            recovery = time.perf_counter() - killed
+        finally:
+            env.close()
+    finally:
+        left = cluster.close()
+    if left:
+        raise RuntimeError(f"processes of the cluster left after it ended: {[process_name(p) for p in left]}")
+    return {"recovery_s": recovery, "start_s": start}
 
 
 def worker_qlearn(robot: str, n: int, steps: int, running_step: float) -> dict:
@@ -445,6 +496,12 @@ def _distributed_rep(folder: Path, rep: int, robot: str, steps: int, running_ste
     _log(f"rep {rep + 1} {robot}: vector env over ROS, Ray actors / pipe workers: " + ", ".join(
         f"N={n} {rates['ray', n]:.0f}/{rates['pipe', n]:.0f} steps/s = {rates['ray', n] / rates['pipe', n]:.2f}"
         for n in DISTRIBUTED_ENVS))
+    recovery = _run_worker(Processes(folder / "recovery"), ["recovery", robot, RECOVERY_STEPS_BEFORE_LOSS,
+                                                            running_step, folder / "recovery-cluster"], timeout=900)
+    s["node_loss_recovery_s"].append(recovery["recovery_s"])
+    s["actors_start_s"].append(recovery["start_s"])
+    _log(f"rep {rep + 1} {robot}: a node lost: its actor's env stepped again {recovery['recovery_s']:.1f} s after "
+         f"the kill (the 2 actors started in {recovery['start_s']:.1f} s)")
 
 
 def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sections: set[str]) -> dict:
@@ -500,7 +557,9 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
                 "envs": list(DISTRIBUTED_ENVS),
                 "steps_per_s": {transport: {str(n): median(s[f"distributed_{transport}_{n}"]) for n in DISTRIBUTED_ENVS}
                                 for transport in ("pipe", "ray")},
-                "ratio_ray_to_pipe": {str(n): median(s[f"ray_to_pipe_{n}"]) for n in DISTRIBUTED_ENVS}}
+                "ratio_ray_to_pipe": {str(n): median(s[f"ray_to_pipe_{n}"]) for n in DISTRIBUTED_ENVS},
+                "node_loss_recovery_s": median(s["node_loss_recovery_s"]),
+                "actors_start_s": median(s["actors_start_s"])}
         if "gazebo" in sections:
             r.update(gazebo_style_rtf1_steps_per_s=median(s["gazebo_1"]),
                      gazebo_style_max_speed_steps_per_s=median(s["gazebo_0"]))
@@ -599,6 +658,10 @@ def table_rows(report: dict) -> list[list[str]]:
         _row(rows, report, f"vector env, ros, N = {n}: Ray actors / pipe workers",
              lambda r, n=n: r["distributed"]["ratio_ray_to_pipe"][str(n)], "{:.2f}")
         _range_row(rows, report, "Ray / pipe", f"ray_to_pipe_{n}")
+    _row(rows, report, "Ray actors, N = 2: start (masters, sims), s",
+         lambda r: r["distributed"]["actors_start_s"], "{:.1f}")
+    _row(rows, report, "node lost: its Ray actor steps again after, s",
+         lambda r: r["distributed"]["node_loss_recovery_s"], "{:.1f}")
     _row(rows, report, "Gazebo-style step at RTF 1, steps/s", lambda r: r["gazebo_style_rtf1_steps_per_s"], "{:.1f}")
     _row(rows, report, "Gazebo-style step at max speed, steps/s", lambda r: r["gazebo_style_max_speed_steps_per_s"],
          "{:.1f}")
@@ -704,6 +767,8 @@ def main(argv) -> int:
             result = worker_lockstep(robot, rest[0], int(rest[1]), float(rest[2]))
         elif kind == "vector":
             result = worker_vector(robot, rest[0], int(rest[1]), int(rest[2]), float(rest[3]), *rest[4:])
+        elif kind == "recovery":
+            result = worker_recovery(robot, int(rest[0]), float(rest[1]), rest[2])
         elif kind == "qlearn":
             result = worker_qlearn(robot, int(rest[0]), int(rest[1]), float(rest[2]))
         elif kind == "deep":
