@@ -124,3 +124,11 @@ def test_the_distributed_rows_give_each_transport_their_ratio_and_the_recovery_t
     assert ranges == ["0.70-0.85", "0.88-0.95"], "N = 1, then N = 2"
     assert cube_cell(lines, "node lost: its Ray actor steps again after, s") == "15.6"
     assert cube_cell(lines, "Ray actors, N = 2: start (masters, sims), s") == "2.2"
+
+
+def test_the_page_says_how_soon_a_sweep_went_on_after_a_node_lost(capsys):
+    data = report(1, [1.9])
+    data["sweep_node_loss_recovery_s"] = 7.94
+    line = "resumed from its checkpoint 7.9 s after the kill"
+    assert any(line in row for row in bench.markdown(data, "./ws bench").splitlines())
+    assert any(line in row for row in table(capsys, data))

@@ -37,7 +37,8 @@ Sections (--sections, default all):
   At N = 1 the difference is a Ray actor call's round trip per env step. Then a node's loss and its recovery
   time: on a two-node cluster (workspace_tools.ray_cluster) with one actor on each node, the second node killed
   by PID as a machine lost, the wall time from the kill to the first env step of the actor Ray restarted on the
-  head (worker_recovery).
+  head (worker_recovery); and the same for a sweep (cube only): from the kill to the lost trial's training
+  resuming from its checkpoint on the other node (_sweep_recovery_time).
 - sweeps: `./ws sweep cube` (workspace_tools.sweep, a private local Ray) of one trial against two trials
   run at once, each trial SWEEP_EPISODES cube training episodes and SWEEP_EVAL_EPISODES evaluation
   episodes; trials per hour of wall time, Ray's start and Tune's overhead included; the ratio two / one.
@@ -55,6 +56,7 @@ import json
 import math
 import os
 import platform
+import signal
 import statistics
 import subprocess
 import sys
@@ -406,6 +408,66 @@ def _sweep_wall_time(folder: Path, seeds: str) -> float:
     return time.monotonic() - started
 
 
+def _sweep_recovery_time(folder: Path) -> float:
+    """Wall seconds from a node's loss to a sweep trial's training resuming: `./ws sweep cube seeds:=0-1` on a
+    three-node LoopbackCluster of one CPU each (a trial on two of them); once both trials have a checkpoint, a
+    node other than the head that runs a trial is killed by PID as a machine lost, and the time runs until the
+    lost trial, run again by Tune on the free node, says in its training.log that it resumes from its checkpoint.
+    The sweep is then ended (its driver's process group killed, then the cluster closed by PID); RuntimeError if
+    the trial does not resume in time."""
+    from workspace_tools.ray_cluster import LoopbackCluster
+    sweep = folder / "results" / "moving_cube" / "lost"
+    logs = [sweep / "logs" / f"seed={seed}" / "training.log" for seed in (0, 1)]
+    cluster = LoopbackCluster(folder / "cluster", nodes=3, cpus_per_node=1)
+    try:
+        env = {**os.environ, **cluster.driver_environment, "ROBOT_RL_CLUSTER_DIR": str(cluster.folder)}
+        with open(folder / "sweep.log", "wb") as output:
+            driver = subprocess.Popen(
+                [sys.executable, "-m", "workspace_tools.sweep", "cube", "seeds:=0-1", "nepisodes:=1000", "nsteps:=100",
+                 "name:=lost", "eval_episodes:=1", f"results_dir:={folder / 'results'}", f"cluster:={cluster.address}"],
+                env=env, stdin=subprocess.DEVNULL, stdout=output, stderr=subprocess.STDOUT, start_new_session=True)
+        try:
+            _wait(lambda: all((sweep / f"seed={seed}" / "qtable.json").is_file() for seed in (0, 1)), 600,
+                  f"both trials' first checkpoints (qtable.json in {sweep}/seed=*; log {folder / 'sweep.log'})")
+            lost = next((i for i in (1, 2) if _runs_training(cluster.processes(), cluster.processes_started[i].pid)),
+                        None)
+            if lost is None:
+                raise RuntimeError(f"no trial runs on a node other than the head (log {folder / 'sweep.log'})")
+            killed = time.monotonic()
+            cluster.kill_node(lost)
+            _wait(lambda: any(log.is_file() and "Resuming" in log.read_text() for log in logs), 600,
+                  f"the lost trial's training resuming ('Resuming' in {sweep}/logs/seed=*/training.log)")
+            return time.monotonic() - killed
+        finally:
+            os.killpg(driver.pid, signal.SIGKILL)  # its trials end with it (Ray), their launches by their death signal
+            driver.wait(30)
+    finally:
+        cluster.close()
+
+
+def _runs_training(pids: list[int], node: int) -> bool:
+    """Whether any of `pids` is a training launch's node started under the node whose `ray start` is `node`."""
+    for pid in pids:
+        try:
+            if b"start_training" not in Path(f"/proc/{pid}/cmdline").read_bytes():
+                continue
+            while pid > 1 and pid != node:
+                pid = int(_stat_fields(pid)[1])
+        except OSError:  # gone
+            continue
+        if pid == node:
+            return True
+    return False
+
+
+def _wait(condition: Any, timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"no {what} within {timeout:.0f} s")
+        time.sleep(0.1)
+
+
 def _machine() -> str:
     import os
     from importlib.metadata import version
@@ -508,6 +570,7 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
     samples: dict[str, dict[str, list[float]]] = {robot: defaultdict(list) for robot in ROBOTS}
     cube_training = []
     sweeps: list[tuple[float, float]] = []  # trials per hour: one trial alone, two at once
+    sweep_recovery: list[float] = []  # s from a node's loss to its trial's training resuming
     with tempfile.TemporaryDirectory(prefix="bench-") as tmp_dir:
         tmp = Path(tmp_dir)
         for rep in range(reps):
@@ -516,6 +579,10 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
             if "training" in sections:
                 cube_training.append(_cube_training_wall_time(tmp / f"{rep}-training", 100))
                 _log(f"rep {rep + 1}/{reps}: 100 cube training episodes in {cube_training[-1]:.1f} s")
+            if "distributed" in sections:
+                sweep_recovery.append(_sweep_recovery_time(tmp / f"{rep}-sweep-recovery"))
+                _log(f"rep {rep + 1}/{reps}: a node lost mid-sweep: its trial resumed {sweep_recovery[-1]:.1f} s after "
+                     f"the kill")
             if "sweeps" in sections:
                 one, two = (_sweep_wall_time(tmp / f"{rep}-sweep-{n}", seeds) for n, seeds in ((1, "0"), (2, "0-1")))
                 sweeps.append((3600 / one, 2 * 3600 / two))
@@ -567,6 +634,8 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
         report[robot] = r
     if "training" in sections:
         report["cube_100_episodes_wall_s"] = median(cube_training)
+    if "distributed" in sections:
+        report["sweep_node_loss_recovery_s"] = median(sweep_recovery)
     if "sweeps" in sections:
         report["sweeps"] = {"episodes_per_trial": SWEEP_EPISODES,
                             "trials_per_hour": {"1": median(one for one, _ in sweeps),
@@ -676,6 +745,13 @@ def sweeps_line(sweeps: dict) -> str:
             f"{sweeps['ratio_2_to_1']:.2f}x.")
 
 
+def sweep_recovery_line(seconds: float) -> str:
+    """A sweep's node loss in one sentence."""
+    return (f"A node lost mid-sweep (`./ws sweep cube seeds:=0-1` on three one-CPU nodes, a trial on two of "
+            f"them): the lost trial ran again on the free node, its training resumed from its checkpoint "
+            f"{seconds:.1f} s after the kill.")
+
+
 def print_table(report: dict) -> None:
     print(f"\n{report['machine']}\n{report['date']}, median of {report['repetitions']} repetitions, load average "
           f"{report['load_average_at_end']:.2f} at the end\n")
@@ -685,6 +761,8 @@ def print_table(report: dict) -> None:
         print(f"| {label:52} | " + " | ".join(f"{cell:>9}" for cell in cells) + " |")
     if "cube_100_episodes_wall_s" in report:
         print(f"cube: 100 training episodes over ROS in {report['cube_100_episodes_wall_s']:.1f} s")
+    if "sweep_node_loss_recovery_s" in report:
+        print(sweep_recovery_line(report["sweep_node_loss_recovery_s"]))
     if "sweeps" in report:
         print(sweeps_line(report["sweeps"]))
     for line in ceiling_warnings(report):
@@ -725,6 +803,8 @@ def markdown(report: dict, command: str) -> str:
               for label, *cells in table_rows(report) if any(cells)]
     if "cube_100_episodes_wall_s" in report:
         lines += ["", f"100 episodes of cube training over ROS took {report['cube_100_episodes_wall_s']:.1f} s."]
+    if "sweep_node_loss_recovery_s" in report:
+        lines += ["", sweep_recovery_line(report["sweep_node_loss_recovery_s"])]
     if "sweeps" in report:
         lines += ["", sweeps_line(report["sweeps"])]
     warnings = ceiling_warnings(report)
