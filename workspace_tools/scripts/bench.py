@@ -38,7 +38,7 @@ Sections (--sections, default all):
   time: on a two-node cluster (workspace_tools.ray_cluster) with one actor on each node, the second node killed
   by PID as a machine lost, the wall time from the kill to the first env step of the actor Ray restarted on the
   head (worker_recovery); and the same for a sweep (cube only): from the kill to the lost trial's training
-  resuming from its checkpoint on the other node (_sweep_recovery_time).
+  resuming from its checkpoint on a free node (_sweep_recovery_time).
 - sweeps: `./ws sweep cube` (workspace_tools.sweep, a private local Ray) of one trial against two trials
   run at once, each trial SWEEP_EPISODES cube training episodes and SWEEP_EVAL_EPISODES evaluation
   episodes; trials per hour of wall time, Ray's start and Tune's overhead included; the ratio two / one.
