@@ -109,11 +109,12 @@ def test_the_page_ends_with_what_made_lockstep_fast_and_no_history():
     assert sum(line.startswith("|---") for line in lines) == 1, "one table: no earlier runs"
 
 
-def test_the_distributed_rows_give_each_transport_and_their_ratio(capsys):
+def test_the_distributed_rows_give_each_transport_their_ratio_and_the_recovery_time(capsys):
     data = report(3, [1.9, 1.9, 1.9])
     pipe, ray = {"1": 700.0, "2": 1200.0}, {"1": 560.0, "2": 1080.0}
     data["cube"]["distributed"] = {"envs": [1, 2], "steps_per_s": {"pipe": pipe, "ray": ray},
-                                   "ratio_ray_to_pipe": {"1": 0.8, "2": 0.9}}
+                                   "ratio_ray_to_pipe": {"1": 0.8, "2": 0.9}, "node_loss_recovery_s": 15.64,
+                                   "actors_start_s": 2.21}
     data["cube"]["per_repetition"].update(ray_to_pipe_1=[0.8, 0.7, 0.85], ray_to_pipe_2=[0.9, 0.88, 0.95])
     lines = table(capsys, data)
     assert cube_cell(lines, "vector env, ros, N = 2, Ray actors, env steps/s") == "1080"
@@ -158,3 +159,14 @@ def test_a_run_without_figures_per_robot_prints_no_table(capsys):
     assert "cube: 100 training episodes over ROS in 41.5 s" in lines
     page_text = bench.markdown(data, "./ws bench --sections training --markdown")
     assert "|" not in page_text and "100 episodes of cube training over ROS took 41.5 s." in page_text
+
+    assert cube_cell(lines, "node lost: its Ray actor steps again after, s") == "15.6"
+    assert cube_cell(lines, "Ray actors, N = 2: start (masters, sims), s") == "2.2"
+
+
+def test_the_page_says_how_soon_a_sweep_went_on_after_a_node_lost(capsys):
+    data = report(1, [1.9])
+    data["sweep_node_loss_recovery_s"] = 7.94
+    line = "resumed from its checkpoint 7.9 s after the kill"
+    assert any(line in row for row in bench.markdown(data, "./ws bench").splitlines())
+    assert any(line in row for row in table(capsys, data))

@@ -35,7 +35,11 @@ Sections (--sections, default all):
 - distributed: the gymnasium vector env's env steps/s with its workers as Ray actors (robot_rl.ray_workers)
   against pipe workers, at N = 1 and 2, over ROS, on a one-node Ray cluster of this machine's cores started
   for each repetition (workspace_tools.ray_cluster), its daemons running during both; the ratio Ray / pipe.
-  At N = 1 the difference is a Ray actor call's round trip per env step.
+  At N = 1 the difference is a Ray actor call's round trip per env step. Then a node's loss and its recovery
+  time: on a two-node cluster (workspace_tools.ray_cluster) with one actor on each node, the second node killed
+  by PID as a machine lost, the wall time from the kill to the first env step of the actor Ray restarted on the
+  head (worker_recovery); and the same for a sweep (cube only): from the kill to the lost trial's training
+  resuming from its checkpoint on a free node (_sweep_recovery_time).
 - sweeps: `./ws sweep cube` (workspace_tools.sweep, a private local Ray) of one trial against two trials
   run at once, each trial SWEEP_EPISODES cube training episodes and SWEEP_EVAL_EPISODES evaluation
   episodes; trials per hour of wall time, Ray's start and Tune's overhead included; the ratio two / one.
@@ -53,6 +57,7 @@ import json
 import math
 import os
 import platform
+import signal
 import statistics
 import subprocess
 import sys
@@ -76,6 +81,7 @@ SWEEP_EPISODES, SWEEP_EVAL_EPISODES = 400, 5
 PERFORMANCE_PAGE = Path(__file__).resolve().parents[2] / "docs" / "performance.md"
 SCALING_ENVS = (1, 2, 4)
 DISTRIBUTED_ENVS = (1, 2)
+RECOVERY_STEPS_BEFORE_LOSS = 50  # vector steps of the two actors before the second node is killed
 
 
 @dataclass(frozen=True)
@@ -222,6 +228,53 @@ def worker_vector(robot: str, backend: str, n: int, steps: int, running_step: fl
     return {"steps_per_s": vector_steps * n / elapsed, "cpu_ms_per_step": 1000.0 * cpu / (vector_steps * n)}
 
 
+def worker_recovery(robot: str, steps: int, running_step: float, folder: str) -> dict:
+    """A node lost under a run: a two-node LoopbackCluster (the head 2 CPUs, the second 1) with a gymnasium vector
+    env of 2 Ray actors, one on each node; after `steps` vector steps the second node is killed as a machine lost
+    (every process of it, by PID), and the vector env steps on. Wall seconds from the kill to the first step the
+    actor restarted on the head completes (Ray finds the node dead, restarts the actor, whose env starts a master
+    and a sim node and resets; the vector env's step says WorkerRestarted, and the next step is the new actor's).
+    Also the wall seconds the two actors took to start (each its master, sim node and env), for scale: the rest of
+    the recovery is Ray finding the node dead (its health checks). RuntimeError if any process of the cluster is
+    left after it ends."""
+    import numpy as np
+
+    from robot_rl.vector import WorkerRestarted, make_vector_env
+    from workspace_tools.ray_cluster import LoopbackCluster, process_name
+    cluster = LoopbackCluster(Path(folder), nodes=2, cpus_per_node=1, head_cpus=2)
+    try:
+        cluster.connect()
+        started = time.perf_counter()
+        env = make_vector_env(ROBOTS[robot].task, 2, backend="ros", seed=0, params=_params(robot, running_step),
+                              cluster=cluster.address)
+        start = time.perf_counter() - started
+        try:
+            if len({worker["node_id"] for worker in env.workers.worker_info}) != 2:
+                raise RuntimeError(f"the 2 actors were not placed one on each node: {env.workers.worker_info}")
+            rng = np.random.default_rng(0)
+            n_actions = int(env.single_action_space.n)  # type: ignore[attr-defined]
+            env.reset(seed=0)
+            for _ in range(steps):
+                env.step(rng.integers(n_actions, size=2))
+            killed = time.perf_counter()
+            cluster.kill_node(1)
+            try:
+                env.step(rng.integers(n_actions, size=2))
+            except WorkerRestarted:
+                pass
+            else:
+                raise RuntimeError("the vector env stepped on after its second node was killed")
+            env.step(rng.integers(n_actions, size=2))
+            recovery = time.perf_counter() - killed
+        finally:
+            env.close()
+    finally:
+        left = cluster.close()
+    if left:
+        raise RuntimeError(f"processes of the cluster left after it ended: {[process_name(p) for p in left]}")
+    return {"recovery_s": recovery, "start_s": start}
+
+
 def worker_qlearn(robot: str, n: int, steps: int, running_step: float) -> dict:
     """robot_rl.vector_training's tabular Q-learning from n envs over ROS, as `./ws run envs:=N` trains
     (episodes.csv written) but with no log lines and no checkpoint until the end, which is not timed:
@@ -356,6 +409,66 @@ def _sweep_wall_time(folder: Path, seeds: str) -> float:
     return time.monotonic() - started
 
 
+def _sweep_recovery_time(folder: Path) -> float:
+    """Wall seconds from a node's loss to a sweep trial's training resuming: `./ws sweep cube seeds:=0-1` on a
+    three-node LoopbackCluster of one CPU each (a trial on two of them); once both trials have a checkpoint, a
+    node other than the head that runs a trial is killed by PID as a machine lost, and the time runs until the
+    lost trial, run again by Tune on the free node, says in its training.log that it resumes from its checkpoint.
+    The sweep is then ended (its driver's process group killed, then the cluster closed by PID); RuntimeError if
+    the trial does not resume in time."""
+    from workspace_tools.ray_cluster import LoopbackCluster
+    sweep = folder / "results" / "moving_cube" / "lost"
+    logs = [sweep / "logs" / f"seed={seed}" / "training.log" for seed in (0, 1)]
+    cluster = LoopbackCluster(folder / "cluster", nodes=3, cpus_per_node=1)
+    try:
+        env = {**os.environ, **cluster.driver_environment, "ROBOT_RL_CLUSTER_DIR": str(cluster.folder)}
+        with open(folder / "sweep.log", "wb") as output:
+            driver = subprocess.Popen(
+                [sys.executable, "-m", "workspace_tools.sweep", "cube", "seeds:=0-1", "nepisodes:=1000", "nsteps:=100",
+                 "name:=lost", "eval_episodes:=1", f"results_dir:={folder / 'results'}", f"cluster:={cluster.address}"],
+                env=env, stdin=subprocess.DEVNULL, stdout=output, stderr=subprocess.STDOUT, start_new_session=True)
+        try:
+            _wait(lambda: all((sweep / f"seed={seed}" / "qtable.json").is_file() for seed in (0, 1)), 600,
+                  f"both trials' first checkpoints (qtable.json in {sweep}/seed=*; log {folder / 'sweep.log'})")
+            lost = next((i for i in (1, 2) if _runs_training(cluster.processes(), cluster.processes_started[i].pid)),
+                        None)
+            if lost is None:
+                raise RuntimeError(f"no trial runs on a node other than the head (log {folder / 'sweep.log'})")
+            killed = time.monotonic()
+            cluster.kill_node(lost)
+            _wait(lambda: any(log.is_file() and "Resuming" in log.read_text() for log in logs), 600,
+                  f"the lost trial's training resuming ('Resuming' in {sweep}/logs/seed=*/training.log)")
+            return time.monotonic() - killed
+        finally:
+            os.killpg(driver.pid, signal.SIGKILL)  # its trials end with it (Ray), their launches by their death signal
+            driver.wait(30)
+    finally:
+        cluster.close()
+
+
+def _runs_training(pids: list[int], node: int) -> bool:
+    """Whether any of `pids` is a training launch's node started under the node whose `ray start` is `node`."""
+    for pid in pids:
+        try:
+            if b"start_training" not in Path(f"/proc/{pid}/cmdline").read_bytes():
+                continue
+            while pid > 1 and pid != node:
+                pid = int(_stat_fields(pid)[1])
+        except OSError:  # gone
+            continue
+        if pid == node:
+            return True
+    return False
+
+
+def _wait(condition: Any, timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"no {what} within {timeout:.0f} s")
+        time.sleep(0.1)
+
+
 def _machine() -> str:
     import os
     from importlib.metadata import version
@@ -446,12 +559,19 @@ def _distributed_rep(folder: Path, rep: int, robot: str, steps: int, running_ste
     _log(f"rep {rep + 1} {robot}: vector env over ROS, Ray actors / pipe workers: " + ", ".join(
         f"N={n} {rates['ray', n]:.0f}/{rates['pipe', n]:.0f} steps/s = {rates['ray', n] / rates['pipe', n]:.2f}"
         for n in DISTRIBUTED_ENVS))
+    recovery = _run_worker(Processes(folder / "recovery"), ["recovery", robot, RECOVERY_STEPS_BEFORE_LOSS,
+                                                            running_step, folder / "recovery-cluster"], timeout=900)
+    s["node_loss_recovery_s"].append(recovery["recovery_s"])
+    s["actors_start_s"].append(recovery["start_s"])
+    _log(f"rep {rep + 1} {robot}: a node lost: its actor's env stepped again {recovery['recovery_s']:.1f} s after "
+         f"the kill (the 2 actors started in {recovery['start_s']:.1f} s)")
 
 
 def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sections: set[str]) -> dict:
     samples: dict[str, dict[str, list[float]]] = {robot: defaultdict(list) for robot in ROBOTS}
     cube_training = []
     sweeps: list[tuple[float, float]] = []  # trials per hour: one trial alone, two at once
+    sweep_recovery: list[float] = []  # s from a node's loss to its trial's training resuming
     with tempfile.TemporaryDirectory(prefix="bench-") as tmp_dir:
         tmp = Path(tmp_dir)
         for rep in range(reps):
@@ -460,6 +580,10 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
             if "training" in sections:
                 cube_training.append(_cube_training_wall_time(tmp / f"{rep}-training", 100))
                 _log(f"rep {rep + 1}/{reps}: 100 cube training episodes in {cube_training[-1]:.1f} s")
+            if "distributed" in sections:
+                sweep_recovery.append(_sweep_recovery_time(tmp / f"{rep}-sweep-recovery"))
+                _log(f"rep {rep + 1}/{reps}: a node lost mid-sweep: its trial resumed {sweep_recovery[-1]:.1f} s after "
+                     f"the kill")
             if "sweeps" in sections:
                 one, two = (_sweep_wall_time(tmp / f"{rep}-sweep-{n}", seeds) for n, seeds in ((1, "0"), (2, "0-1")))
                 sweeps.append((3600 / one, 2 * 3600 / two))
@@ -501,7 +625,9 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
                 "envs": list(DISTRIBUTED_ENVS),
                 "steps_per_s": {transport: {str(n): median(s[f"distributed_{transport}_{n}"]) for n in DISTRIBUTED_ENVS}
                                 for transport in ("pipe", "ray")},
-                "ratio_ray_to_pipe": {str(n): median(s[f"ray_to_pipe_{n}"]) for n in DISTRIBUTED_ENVS}}
+                "ratio_ray_to_pipe": {str(n): median(s[f"ray_to_pipe_{n}"]) for n in DISTRIBUTED_ENVS},
+                "node_loss_recovery_s": median(s["node_loss_recovery_s"]),
+                "actors_start_s": median(s["actors_start_s"])}
         if "gazebo" in sections:
             r.update(gazebo_style_rtf1_steps_per_s=median(s["gazebo_1"]),
                      gazebo_style_max_speed_steps_per_s=median(s["gazebo_0"]))
@@ -509,6 +635,8 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
         report[robot] = r
     if "training" in sections:
         report["cube_100_episodes_wall_s"] = median(cube_training)
+    if "distributed" in sections:
+        report["sweep_node_loss_recovery_s"] = median(sweep_recovery)
     if "sweeps" in sections:
         report["sweeps"] = {"episodes_per_trial": SWEEP_EPISODES,
                             "trials_per_hour": {"1": median(one for one, _ in sweeps),
@@ -601,6 +729,10 @@ def table_rows(report: dict) -> list[list[str]]:
         _row(rows, report, f"vector env, ros, N = {n}: Ray actors / pipe workers",
              lambda r, n=n: r["distributed"]["ratio_ray_to_pipe"][str(n)], "{:.2f}")
         _range_row(rows, report, "Ray / pipe", f"ray_to_pipe_{n}")
+    _row(rows, report, "Ray actors, N = 2: start (masters, sims), s",
+         lambda r: r["distributed"]["actors_start_s"], "{:.1f}")
+    _row(rows, report, "node lost: its Ray actor steps again after, s",
+         lambda r: r["distributed"]["node_loss_recovery_s"], "{:.1f}")
     _row(rows, report, "Gazebo-style step at RTF 1, steps/s", lambda r: r["gazebo_style_rtf1_steps_per_s"], "{:.1f}")
     _row(rows, report, "Gazebo-style step at max speed, steps/s", lambda r: r["gazebo_style_max_speed_steps_per_s"],
          "{:.1f}")
@@ -616,6 +748,13 @@ def sweeps_line(sweeps: dict) -> str:
             f"{sweeps['ratio_2_to_1']:.2f}x.")
 
 
+def sweep_recovery_line(seconds: float) -> str:
+    """A sweep's node loss in one sentence."""
+    return (f"A node lost mid-sweep (`./ws sweep cube seeds:=0-1` on three one-CPU nodes, a trial on two of "
+            f"them): the lost trial ran again on the free node, its training resumed from its checkpoint "
+            f"{seconds:.1f} s after the kill.")
+
+
 def print_table(report: dict) -> None:
     print(f"\n{report['machine']}\n{report['date']}, median of {report['repetitions']} repetitions, load average "
           f"{report['load_average_at_end']:.2f} at the end\n")
@@ -627,6 +766,8 @@ def print_table(report: dict) -> None:
         print(f"| {label:52} | " + " | ".join(f"{cell:>9}" for cell in cells) + " |")
     if "cube_100_episodes_wall_s" in report:
         print(f"cube: 100 training episodes over ROS in {report['cube_100_episodes_wall_s']:.1f} s")
+    if "sweep_node_loss_recovery_s" in report:
+        print(sweep_recovery_line(report["sweep_node_loss_recovery_s"]))
     if "sweeps" in report:
         print(sweeps_line(report["sweeps"]))
     for line in ceiling_warnings(report):
@@ -668,6 +809,8 @@ def markdown(report: dict, command: str) -> str:
         lines += ["| " + " | ".join([label.strip(), *cells]) + " |" for label, *cells in rows]
     if "cube_100_episodes_wall_s" in report:
         lines += ["", f"100 episodes of cube training over ROS took {report['cube_100_episodes_wall_s']:.1f} s."]
+    if "sweep_node_loss_recovery_s" in report:
+        lines += ["", sweep_recovery_line(report["sweep_node_loss_recovery_s"])]
     if "sweeps" in report:
         lines += ["", sweeps_line(report["sweeps"])]
     warnings = ceiling_warnings(report)
@@ -709,6 +852,8 @@ def main(argv) -> int:
             result = worker_lockstep(robot, rest[0], int(rest[1]), float(rest[2]))
         elif kind == "vector":
             result = worker_vector(robot, rest[0], int(rest[1]), int(rest[2]), float(rest[3]), *rest[4:])
+        elif kind == "recovery":
+            result = worker_recovery(robot, int(rest[0]), float(rest[1]), rest[2])
         elif kind == "qlearn":
             result = worker_qlearn(robot, int(rest[0]), int(rest[1]), float(rest[2]))
         elif kind == "deep":

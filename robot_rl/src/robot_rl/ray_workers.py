@@ -10,7 +10,9 @@ CPU each; each is a process of its own whose methods run on its main thread (a s
 its master and sim node get SIGTERM when that thread ends (PR_SET_PDEATHSIG). Unlike pipe workers, they run
 in the normal scheduling class: Ray's threads hand each call to the main thread, and a SCHED_BATCH main thread
 waits for its turn at every hand-over (Ray actors at N = 2 reached 0.44-0.47x of pipe workers' env steps/s
-with it, 0.65-0.69x without, on a loaded 2-core machine).
+with it, 0.65-0.69x without, on a loaded 2-core machine). Each step is a plain actor call: a Ray Compiled Graph
+over the actors was no faster within one node and 5-10x slower to an actor on another node, nor were threaded or
+async actors faster (workspace_tools/scripts/ray_call_bench.py; docs/distributed.md).
 
 An actor's logs (its master's and sim node's, the traceback of a failure) stay on its node, in a temporary
 folder the errors name with the node's address; close() removes them unless a worker failed. Every wait is

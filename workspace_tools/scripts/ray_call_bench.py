@@ -1,0 +1,187 @@
+#!/usr/bin/env python3
+"""The round trip of a trivial Ray actor method, the floor under an env step over Ray actors.
+
+For 1 and 2 actors on a LoopbackCluster of this machine (--nodes 2: each actor on a node of its own; 1: both on
+the driver's node): plain `.remote` calls taken as robot_rl.ray_workers takes a step (a bounded ray.wait for all,
+then ray.get), the same with ray.get(timeout=...), one Ray Compiled Graph over all the actors (InputNode,
+MultiOutputNode, experimental_compile), a threaded actor (max_concurrency=2) and an async actor; and a pipe to a
+spawned process for scale. Each call sends an int and answers an observation-sized numpy array. Prints
+microseconds per round trip (the median of --reps blocks of --calls calls), with the date, the machine and its
+load average. Then the same with real envs (--env-steps): the cube's env steps/s at N = 2 over ROS with pipe
+workers (robot_rl.vector), with Ray actors (robot_rl.ray_workers) and with one compiled graph over those actors.
+
+    ./ws python workspace_tools/scripts/ray_call_bench.py [--nodes 1|2] [--calls 2000] [--reps 3] [--env-steps 1000]
+"""
+from __future__ import annotations
+
+import argparse
+import datetime
+import multiprocessing
+import os
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+class Echo:
+    """A trivial actor: answers an observation-sized array for any action."""
+
+    def __init__(self) -> None:
+        self.observation = np.zeros(8, dtype=np.float32)
+
+    def step(self, action: Any) -> np.ndarray:
+        self.observation[0] = float(action)
+        return self.observation.copy()
+
+
+class AsyncEcho(Echo):
+    """Echo whose method is a coroutine: Ray runs it on the actor's event loop instead of its main thread."""
+
+    async def step(self, action: Any) -> np.ndarray:  # type: ignore[override]
+        return Echo.step(self, action)
+
+
+def _pipe_echo(conn: Any) -> None:
+    echo = Echo()
+    while True:
+        action = conn.recv()
+        if action is None:
+            return
+        conn.send(echo.step(action))
+
+
+def _timed(call: Any, calls: int, reps: int) -> float:
+    """Median microseconds per call over reps blocks of calls."""
+    for i in range(min(200, calls)):  # warm up
+        call(i)
+    blocks = []
+    for _ in range(reps):
+        start = time.perf_counter()
+        for i in range(calls):
+            call(i)
+        blocks.append((time.perf_counter() - start) / calls * 1e6)
+    return statistics.median(blocks)
+
+
+def _wait_get(ray: Any, refs: list[Any]) -> list[Any]:
+    """As robot_rl.ray_workers takes every reply: a bounded ray.wait for all, then ray.get."""
+    ray.wait(refs, num_returns=len(refs), timeout=10.0)
+    return ray.get(refs)
+
+
+def _env_rates(ray: Any, address: str, steps: int) -> dict[str, float]:
+    """Env steps/s of the cube's vector env at N = 2 over ROS (random actions, resets included): pipe workers,
+    Ray actors as robot_rl.ray_workers steps them, and one compiled graph over the same two actors."""
+    from ray.dag import InputNode, MultiOutputNode
+
+    from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+    from robot_rl.ray_workers import RayEnvWorkers
+    from robot_rl.vector import EnvWorkers
+
+    def rate(step: Any) -> float:
+        rng = np.random.default_rng(0)
+        for _ in range(min(50, steps)):  # warm up
+            step([int(a) for a in rng.integers(5, size=2)])
+        start = time.perf_counter()
+        for _ in range(steps):
+            step([int(a) for a in rng.integers(5, size=2)])
+        return 2 * steps / (time.perf_counter() - start)
+    rates = {}
+    pipes = EnvWorkers(ONE_DISK_WALK, 2, seed=0)
+    try:
+        pipes.request_all("reset", [(seed, None) for seed in pipes.seeds])
+        rates["pipe workers (EnvWorkers)"] = rate(lambda actions: pipes.request_all("step", actions))
+    finally:
+        pipes.close()
+    actors = RayEnvWorkers(ONE_DISK_WALK, 2, seed=0, cluster=address)
+    try:
+        actors.request_all("reset", [(seed, None) for seed in actors.seeds])
+        rates["Ray actors (RayEnvWorkers)"] = rate(lambda actions: actors.request_all("step", actions))
+        with InputNode() as command:
+            dag = MultiOutputNode([actor.command.bind(command[0], command[i + 1])
+                                   for i, actor in enumerate(actors._actors)])
+        compiled = dag.experimental_compile()
+        try:
+            rates["the same actors, one compiled graph"] = rate(
+                lambda actions: ray.get(compiled.execute("step", *actions), timeout=60.0))
+        finally:
+            compiled.teardown()
+    finally:
+        actors.close()
+    return rates
+
+
+def main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--calls", type=int, default=2000)
+    parser.add_argument("--reps", type=int, default=3)
+    parser.add_argument("--nodes", type=int, default=2, choices=(1, 2),
+                        help="2: each actor on a node of its own; 1: both on the driver's node")
+    parser.add_argument("--env-steps", type=int, default=1000,
+                        help="vector steps of the cube's real envs at N = 2 each way (0: none)")
+    args = parser.parse_args(argv)
+    from workspace_tools.ray_cluster import LoopbackCluster
+    figures: dict[str, float] = {}
+    context = multiprocessing.get_context("spawn")
+    parent, child = context.Pipe()
+    process = context.Process(target=_pipe_echo, args=(child,), daemon=True)
+    process.start()
+
+    def pipe_call(i: int) -> None:
+        parent.send(i)
+        parent.recv()
+    figures["pipe, 1 process"] = _timed(pipe_call, args.calls, args.reps)
+    parent.send(None)
+    process.join()
+    with tempfile.TemporaryDirectory(prefix="ray-call-bench-") as folder, \
+            LoopbackCluster(Path(folder), nodes=args.nodes, cpus_per_node=3 - args.nodes) as cluster:
+        cluster.connect()  # before ray is imported: Ray reads the token then
+        import ray
+        from ray.dag import InputNode, MultiOutputNode
+        placed: dict[str, Any] = {"num_cpus": 1, "scheduling_strategy": "SPREAD"}
+        kinds: dict[str, Any] = {"sync": ray.remote(Echo).options(**placed),  # as robot_rl.ray_workers' actors
+                                 "threaded": ray.remote(Echo).options(max_concurrency=2, **placed),
+                                 "async": ray.remote(AsyncEcho).options(**placed)}
+        for kind, remote in kinds.items():
+            actors = [remote.remote() for _ in range(2)]
+            ray.get([actor.__ray_ready__.remote() for actor in actors], timeout=60.0)
+            for n in (1, 2):
+                chosen = actors[:n]
+                figures[f"{n} actor(s), {kind}, .remote, wait + get"] = _timed(
+                    lambda i, chosen=chosen: _wait_get(ray, [actor.step.remote(i) for actor in chosen]),
+                    args.calls, args.reps)
+                if kind != "sync":
+                    continue
+                figures[f"{n} actor(s), {kind}, .remote, get(timeout)"] = _timed(
+                    lambda i, chosen=chosen: ray.get([actor.step.remote(i) for actor in chosen], timeout=10.0),
+                    args.calls, args.reps)
+                with InputNode() as action:
+                    dag = MultiOutputNode([actor.step.bind(action) for actor in chosen])
+                compiled = dag.experimental_compile()
+                try:
+                    figures[f"{n} actor(s), {kind}, compiled graph"] = _timed(
+                        lambda i, c=compiled: ray.get(c.execute(i), timeout=10.0), args.calls, args.reps)
+                finally:
+                    compiled.teardown()
+            for actor in actors:
+                ray.kill(actor)
+        env_rates = _env_rates(ray, cluster.address, args.env_steps) if args.env_steps else {}
+    date = datetime.datetime.now(datetime.UTC)
+    cpu = next((line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
+                if line.startswith("model name")), "?")
+    print(f"{date:%Y-%m-%d %H:%M} UTC, {cpu}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}; "
+          f"{args.nodes} Ray node(s) on this machine; median of {args.reps} x {args.calls} calls")
+    for label, microseconds in figures.items():
+        print(f"{label:58} {microseconds:6.0f} us per round trip")
+    for label, rate in env_rates.items():
+        print(f"cube, N = 2, {label:45} {rate:6.0f} env steps/s, {rate / next(iter(env_rates.values())):.2f}x pipe")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
