@@ -122,6 +122,16 @@ def test_the_distributed_rows_give_each_transport_their_ratio_and_the_recovery_t
     assert cube_cell(lines, "vector env, ros, N = 2: Ray actors / pipe workers") == "0.90"
     ranges = [line.split("|")[2].strip() for line in lines if line.startswith("|   Ray / pipe: lowest-highest")]
     assert ranges == ["0.70-0.85", "0.88-0.95"], "N = 1, then N = 2"
+    assert cube_cell(lines, "node lost: its Ray actor steps again after, s") == "15.6"
+    assert cube_cell(lines, "Ray actors, N = 2: start (masters, sims), s") == "2.2"
+
+
+def test_the_page_says_how_soon_a_sweep_went_on_after_a_node_lost(capsys):
+    data = report(1, [1.9])
+    data["sweep_node_loss_recovery_s"] = 7.94
+    line = "resumed from its checkpoint 7.9 s after the kill"
+    assert any(line in row for row in bench.markdown(data, "./ws bench").splitlines())
+    assert any(line in row for row in table(capsys, data))
 
 
 # -- --sections: only the sections run are printed ------------------------------------------------
@@ -159,14 +169,3 @@ def test_a_run_without_figures_per_robot_prints_no_table(capsys):
     assert "cube: 100 training episodes over ROS in 41.5 s" in lines
     page_text = bench.markdown(data, "./ws bench --sections training --markdown")
     assert "|" not in page_text and "100 episodes of cube training over ROS took 41.5 s." in page_text
-
-    assert cube_cell(lines, "node lost: its Ray actor steps again after, s") == "15.6"
-    assert cube_cell(lines, "Ray actors, N = 2: start (masters, sims), s") == "2.2"
-
-
-def test_the_page_says_how_soon_a_sweep_went_on_after_a_node_lost(capsys):
-    data = report(1, [1.9])
-    data["sweep_node_loss_recovery_s"] = 7.94
-    line = "resumed from its checkpoint 7.9 s after the kill"
-    assert any(line in row for row in bench.markdown(data, "./ws bench").splitlines())
-    assert any(line in row for row in table(capsys, data))
