@@ -18,8 +18,9 @@
 #   ./ws sweep [cube|hopper] [seeds:=0-9] [NAME:=V1,V2 ...] [name:=SWEEP] [resume:=true] [cluster:=ray|ADDRESS]
 #                               many training runs on Ray Tune, a table and a plot (installs requirements-distributed.txt)
 #   ./ws cluster start|join ADDRESS|stop|status  this machine's Ray node (installs requirements-distributed.txt)
-#   ./ws demo [cube|hopper] [VIDEO.mp4]  the shipped trained policy (<package>/policies/demo) plays one
-#                               episode, recorded to VIDEO.mp4 (default ./demo_<robot>.mp4), then evaluate.py's JSON
+#   ./ws demo [cube|hopper] [policy:=NAME] [VIDEO.mp4]  a shipped trained policy (<package>/policies/NAME,
+#                               default demo) plays one episode, recorded to VIDEO.mp4 (default ./demo_<robot>.mp4),
+#                               then evaluate.py's JSON (a deep agent's policy also installs requirements-deep.txt)
 #   ./ws setup [deep|distributed]  only the set-up (deep: also torch and stable-baselines3; distributed: also Ray)
 #   ./ws help                   this text and the arguments of every launch file ./ws run starts
 set -euo pipefail
@@ -314,17 +315,24 @@ case "$command" in
     exec python -m robot_rl.cluster "$@" ;;
   demo)
     robot=hopper
-    if [ $# -gt 0 ] && [[ "$1" != *.mp4 ]]; then robot="$1"; shift; fi
+    policy=demo
+    if [ $# -gt 0 ] && [[ "$1" != *.mp4 && "$1" != policy:=* ]]; then robot="$1"; shift; fi
+    if [ $# -gt 0 ] && [[ "$1" == policy:=* ]]; then policy="${1#policy:=}"; shift; fi
     case "$robot" in
       cube) package=moving_cube_training ;;
       hopper) package=hopper_training ;;
       *) die "unknown robot '$robot' (known: cube, hopper)" ;;
     esac
-    [ $# -le 1 ] || die "usage: ./ws demo [cube|hopper] [VIDEO.mp4]"
+    [ $# -le 1 ] || die "usage: ./ws demo [cube|hopper] [policy:=NAME] [VIDEO.mp4]"
+    shipped="$ROOT/$package/policies"
+    if [[ ! "$policy" =~ ^[A-Za-z0-9_-]+$ ]] || [ ! -d "$shipped/$policy" ]; then
+      die "no shipped policy '$policy' for $robot (known: $(ls "$shipped" | tr '\n' ' '| sed 's/ $//; s/ /, /g'))"
+    fi
     video="$(realpath -m "${1:-demo_$robot.mp4}")"
     setup
+    if [ -f "$shipped/$policy/agent.json" ]; then ensure_requirements requirements-deep.txt; fi
     enter_environment
-    exec rosrun "$package" evaluate.py --run "$ROOT/$package/policies/demo" --episodes 1 --video "$video" \
+    exec rosrun "$package" evaluate.py --run "$shipped/$policy" --episodes 1 --video "$video" \
       --video-episodes 1 ;;
   python)
     setup

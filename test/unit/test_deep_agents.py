@@ -2,7 +2,9 @@
 VecEnv contract of RobotVecEnv (N worker processes), DQN and PPO training that writes every results file,
 resume from model.zip's weights and agent.json's counters, evaluation of a deep run, and which agent
 may act in which action space (SAC: Box only, DQN: Discrete only)."""
+import hashlib
 import json
+import zipfile
 
 import gymnasium
 import numpy as np
@@ -22,6 +24,7 @@ from robot_rl.params import ParamError
 from robot_rl.results import DEEP_CHECKPOINT, RunDirectory
 from robot_rl.task import make_env
 from robot_rl.vector import worker_seeds
+from workspace_tools.ship import ship_run
 
 
 @pytest.mark.parametrize("task", [*CUBE_TASKS, *HOPPER_TASKS], ids=lambda t: t.env_id)
@@ -289,3 +292,28 @@ def test_sac_learns_on_a_box_space_and_its_greedy_action_is_an_array_in_the_spac
     action = DeepPolicy(model)(env.reset(seed=0)[0])
     assert isinstance(action, np.ndarray) and action.dtype == np.float32 and env.action_space.contains(action)
     env.close()
+
+
+def test_a_shipped_deep_run_keeps_only_the_weights_and_acts_as_the_run(tmp_path):
+    run, _ = train(tmp_path, "dqn", 1)
+    shipped = tmp_path / "policies" / "demo"
+    names = ship_run(run.path, shipped)
+    assert sorted(names) == sorted(p.name for p in shipped.iterdir())
+    with zipfile.ZipFile(shipped / "model.zip") as model:
+        entries = model.namelist()
+    assert "data" not in entries and "policy.pth" in entries and all(
+        e.endswith(".pth") or e == "_stable_baselines3_version" for e in entries)
+    checkpoint = json.loads((shipped / "agent.json").read_text())
+    assert checkpoint["model_sha256"] == hashlib.sha256((shipped / "model.zip").read_bytes()).hexdigest()
+    reports = [evaluate(TrainedRun(path, list(CUBE_TASKS)), episodes=2, horizon_s=0.6, backend="direct", seed=3)
+               for path in (run.path, shipped)]
+    assert reports[0] == reports[1]
+
+
+def test_shipping_refuses_a_folder_that_is_not_a_finished_run(tmp_path):
+    run, _ = train(tmp_path, "dqn", 1)
+    (run.path / "model.zip").unlink()
+    with pytest.raises(ValueError, match="agent.json without its model.zip"):
+        ship_run(run.path, tmp_path / "shipped")
+    with pytest.raises(ValueError, match="not a run folder"):
+        ship_run(tmp_path, tmp_path / "shipped")

@@ -1,0 +1,31 @@
+#!/usr/bin/env python3
+"""Ship a trained run into the repository: its checkpoint, params and results, a deep run's model.zip with
+its weights only (workspace_tools.ship).
+
+  ship_policy.py RUN DESTINATION
+  e.g. ./ws exec rosrun workspace_tools ship_policy.py training_results/monoped_residual_forward-sac/sac_s0 \
+           hopper_training/policies/residual_forward_sac
+"""
+import argparse
+import sys
+from pathlib import Path
+
+from workspace_tools.ship import ship_run
+
+
+def main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
+    parser.add_argument("run", type=Path, help="a run folder (training_results/<task>/<run>) or its latest link")
+    parser.add_argument("destination", type=Path, help="the folder to write, e.g. <package>/policies/<name>")
+    args = parser.parse_args(argv)
+    try:
+        names = ship_run(args.run, args.destination)
+    except (OSError, ValueError) as error:
+        print(f"ship_policy.py: {error}", file=sys.stderr)
+        return 1
+    print(f"wrote {', '.join(names)} to {args.destination}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
