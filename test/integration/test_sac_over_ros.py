@@ -1,10 +1,12 @@
 """SAC over ROS (hopper_training's main.launch, agent:=sac) on the monoped's continuous joint targets: a
-short run writes every results file, then resume:=true continues it to twice the episodes."""
+short run writes every results file, then resume:=true continues it to twice the episodes; and on the
+residual task (task:=residual_forward), one hop a step."""
 import csv
 import json
 
 import yaml
 
+from hopper_training.hop_residual import RESIDUAL_FORWARD
 from hopper_training.monoped_env import STAY_UP
 from robot_rl.agents import find_agent
 from workspace_tools.processes import launch_args
@@ -52,3 +54,23 @@ def test_a_short_sac_run_writes_every_results_file_and_resumes(ros_master, tmp_p
     summary = json.loads((run / "summary.json").read_text())
     assert summary["completed"] and (summary["episodes"], summary["agent"]) == (4, "sac")
     assert (run / "model.zip").read_bytes() != first_model, "the resumed run saved its own weights"
+
+
+def test_sac_trains_the_residual_task_over_ros_one_hop_a_step(ros_master, tmp_path):
+    config = yaml.safe_load(RESIDUAL_FORWARD.config_path.read_text())
+    config.update(nsteps=300)  # 0.6 s of sim time: two or three hops an episode
+    config_file = tmp_path / "residual_forward.yaml"
+    config_file.write_text(yaml.safe_dump(config))
+    _, agent_file = _files(tmp_path)
+    result = ros_master.run(["roslaunch", "hopper_training", "main.launch", *launch_args(
+        task="residual_forward", agent="sac", agent_config=agent_file, config=config_file, nepisodes=3, run="sac",
+        results_dir=tmp_path / "results", video="false")], timeout=TRAINING_TIMEOUT)
+    log = result.stdout + result.stderr
+    assert result.returncode == 0 and "Training complete: 3 episodes" in log, log[-4000:]
+    run = tmp_path / "results" / "monoped_residual_forward-sac" / "sac"
+    with open(run / "episodes.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 3
+    for row in rows:  # a step is a hop (~0.27 s, the first from standing shorter), not a control period (2 ms)
+        assert 1 <= int(row["steps"]) <= 6, row
+    assert yaml.safe_load((run / "params.yaml").read_text())["target_speed"] == 0.4

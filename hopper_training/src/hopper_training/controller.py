@@ -23,6 +23,8 @@ contact and the knee's rate:
   hips solving for the body's tilt and yaw (the hips cannot hold the yaw of a point foot: it drifts).
   Hooks for the hop-level task (hop_level.py): `placement_offset` (m, world x, y) is added to the foot
   placement, and HopGains.speed_feedback False leaves out k_v (v - v_d) and b (the neutral point remains).
+  For the residual tasks (hop_residual.py): `hip_offset` (rad, haa and hfe) is added to the flight's hip
+  targets that the inverse kinematics solved for, before the swing gain.
 
 The leg's kinematics and masses (LegModel) are hopper_description/urdf/monoped.urdf's; test_hop_controller.py
 checks them against PyBullet's. Roll, pitch and yaw are sxyz Euler angles of the IMU's orientation, as tf's.
@@ -219,6 +221,7 @@ class HopController:
     _lost_contact_time: float | None = None
     placement_bias: list[float] = field(default_factory=lambda: [0.0, 0.0])  # m along world x, y: the per-hop sum
     placement_offset: list[float] = field(default_factory=lambda: [0.0, 0.0])  # m along world x, y, set from outside
+    hip_offset: list[float] = field(default_factory=lambda: [0.0, 0.0])  # rad on the flight's haa, hfe, set from outside
     _flight_energy: list[float] = field(default_factory=list)  # z + vz^2 / 2g of this flight's readings
     _flight_velocity: list[tuple[float, float]] = field(default_factory=list)  # vx, vy of this flight's readings
 
@@ -250,6 +253,7 @@ class HopController:
             target = (math.cos(yaw) * world_target[0] + math.sin(yaw) * world_target[1],
                       -math.sin(yaw) * world_target[0] + math.cos(yaw) * world_target[1])
             haa, hfe = hips_for_foot(self.model, target, (q[0], q[1], g.landing_knee), rotation)
+            haa, hfe = haa + self.hip_offset[0], hfe + self.hip_offset[1]
             haa, hfe = (clamp(q[0] + g.flight_swing_gain * (haa - q[0]), HIP_LIMITS),
                         clamp(q[1] + g.flight_swing_gain * (hfe - q[1]), HIP_LIMITS))
             return haa, hfe, clamp(g.landing_knee, KNEE_LIMITS)

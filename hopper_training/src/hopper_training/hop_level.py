@@ -91,7 +91,18 @@ STANCE_PHASES = (Phase.LOADING, Phase.COMPRESSION, Phase.THRUST, Phase.UNLOADING
 
 
 @dataclass(frozen=True, kw_only=True)
-class HopLevelParams(MonopedParams):
+class HopCycleParams(MonopedParams):
+    """The params of the tasks whose step is one hop of the controller's cycle (this one, hop_residual.py)."""
+
+    speed_weight: float = param(low=0.0, doc="reward per hop: minus this x the speed error (m/s) at the decision point")
+    max_hop_s: float = param(low=0.1, high=5.0, doc="s: a step ends after this without a lift-off")
+    neutral_point: bool = param(default=True, doc="the controller's neutral point v T_s / 2 (false: the agent's too)")
+    speed_feedback: bool = param(default=False, doc="the controller's own k_v (v - v_d) and b: true only for "
+                                                    "evaluate.py --policy controller")
+
+
+@dataclass(frozen=True, kw_only=True)
+class HopLevelParams(HopCycleParams):
     state_key: str = param(choices=("hop",), default="hop", doc="the Q-learning state key: hop (HopLevelStateKey)")
     offset_min: float = param(low=-0.2, high=0.2, doc="m: the foot placement offset of offset index 0")
     offset_max: float = param(low=-0.2, high=0.2, doc="m: that of the last offset index")
@@ -100,11 +111,6 @@ class HopLevelParams(MonopedParams):
     thrust_max: float = param(low=-0.5, high=0.0, doc="rad: that of the last thrust index")
     thrust_levels: int = param(low=1, high=5, doc="thrusts to choose from")
     default_thrust: float = param(low=-0.5, high=0.0, doc="rad: the do-nothing action's thrust (a level)")
-    speed_weight: float = param(low=0.0, doc="reward per hop: minus this x the speed (m/s) at the decision point")
-    max_hop_s: float = param(low=0.1, high=5.0, doc="s: a step ends after this without a lift-off")
-    neutral_point: bool = param(default=True, doc="the controller's neutral point v T_s / 2 (false: the agent's too)")
-    speed_feedback: bool = param(default=False, doc="the controller's own k_v (v - v_d) and b: true only for "
-                                                    "evaluate.py --policy controller")
 
     def check(self, source: str) -> None:
         super().check(source)
@@ -179,21 +185,20 @@ HOP_LEVEL = TaskSpec(
     metrics=hop_level_metrics, headline_metric="time_upright_s", eval_horizon_s=10.0, curve_metrics=("hops", "drift"))
 
 
-class MonopedHopLevelEnv(MonopedEnv):
-    task = HOP_LEVEL
+class HopCycleEnv(MonopedEnv):
+    """The monoped's tasks whose step is one hop: the controller runs the hop cycle every running_step from a
+    lift-off to the next (a fall or the horizon); subclasses give the spaces, the action, the observation and
+    the reward."""
+
     multi_period_steps = True  # a step is a hop of many control periods: period_hooks after each
-    params: HopLevelParams
+    params: HopCycleParams
 
     def __init__(self, *args: Any, **kwargs: Any):
         super().__init__(*args, **kwargs)
-        gains = replace(HopGains(), speed_feedback=self.params.speed_feedback, neutral_point=self.params.neutral_point)
-        self.controller = HopController(gains)
+        self.controller = HopController(self._controller_gains())
 
-    def _spaces(self) -> tuple[spaces.Discrete | spaces.Box, spaces.Box]:
-        p = self.params
-        high = np.array([np.inf, np.inf, np.inf, 1.0, math.pi, math.pi / 2, np.inf, np.inf], dtype=np.float32)
-        low = np.array([-np.inf, -np.inf, 0.0, -1.0, -math.pi, -math.pi / 2, -np.inf, 0.0], dtype=np.float32)
-        return spaces.Discrete(p.offset_levels * p.thrust_levels), spaces.Box(low, high, dtype=np.float32)
+    def _controller_gains(self) -> HopGains:
+        return replace(HopGains(), speed_feedback=self.params.speed_feedback, neutral_point=self.params.neutral_point)
 
     @property
     def start_targets(self) -> list[float]:
@@ -208,7 +213,6 @@ class MonopedHopLevelEnv(MonopedEnv):
         self.start_xy = readings.odometry(ODOMETRY_SENSOR).position[:2]
         self.hop_time = 0.0
         self.fell = False
-        self.offset, self.thrust = 0.0, self.params.default_thrust
         self.velocities: deque[tuple[float, float]] = deque(maxlen=VELOCITY_WINDOW)
         velocity = readings.odometry(ODOMETRY_SENSOR).linear_velocity
         self.velocities.append((velocity[0], velocity[1]))
@@ -225,16 +229,6 @@ class MonopedHopLevelEnv(MonopedEnv):
         speed = math.hypot(vx, vy)
         return vx, vy, speed, ((vx / speed, vy / speed) if speed >= MIN_SPEED else (1.0, 0.0))
 
-    def _apply_action(self, action: Any, readings: Readings) -> None:
-        offset, thrust = action_meaning(self.params, action)
-        _, _, _, (ux, uy) = self._velocity_frame()
-        controller = self.controller
-        controller.placement_offset = [offset * ux, offset * uy]
-        controller.gains = replace(controller.gains, thrust_knee=thrust)
-        if controller.hops > 0:  # from the first touchdown on, the controller's thrust is this hop's
-            controller.thrust_knee = thrust
-        self.offset, self.thrust = offset, thrust
-
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """One hop: the controller every running_step until the next lift-off, a fall or the horizon."""
         self._check_open()
@@ -242,7 +236,7 @@ class MonopedHopLevelEnv(MonopedEnv):
             raise gymnasium.error.ResetNeeded("call reset() before step()")
         if not self.action_space.contains(action):
             raise ValueError(f"action {action!r} is not in {self.action_space}")
-        self._apply_action(int(action), self.readings)
+        self._apply_action(action, self.readings)
         self.readings = readings = self._advance()
         observation = self._observe(readings)
         terms, terminated, info = self._reward_and_termination(observation, readings)
@@ -286,6 +280,38 @@ class MonopedHopLevelEnv(MonopedEnv):
         self.hop_time = readings.stamp - started
         return readings
 
+    def _hop_info(self, readings: Readings) -> dict[str, Any]:
+        """The info of every hop-level step (the module docstring's Info)."""
+        position = readings.odometry(ODOMETRY_SENSOR).position
+        return {"fell": self.fell, "base_height": position[2], "x_travelled": position[0] - self.start_x,
+                **self.hop_tracker.summary(), "episode_time": readings.stamp - self.episode_start,
+                "hop_time": self.hop_time, "drift": math.dist(position[:2], self.start_xy)}
+
+
+class MonopedHopLevelEnv(HopCycleEnv):
+    task = HOP_LEVEL
+    params: HopLevelParams
+
+    def _spaces(self) -> tuple[spaces.Discrete | spaces.Box, spaces.Box]:
+        p = self.params
+        high = np.array([np.inf, np.inf, np.inf, 1.0, math.pi, math.pi / 2, np.inf, np.inf], dtype=np.float32)
+        low = np.array([-np.inf, -np.inf, 0.0, -1.0, -math.pi, -math.pi / 2, -np.inf, 0.0], dtype=np.float32)
+        return spaces.Discrete(p.offset_levels * p.thrust_levels), spaces.Box(low, high, dtype=np.float32)
+
+    def _start_episode(self, readings: Readings) -> None:
+        super()._start_episode(readings)
+        self.offset, self.thrust = 0.0, self.params.default_thrust
+
+    def _apply_action(self, action: Any, readings: Readings) -> None:
+        offset, thrust = action_meaning(self.params, action)
+        _, _, _, (ux, uy) = self._velocity_frame()
+        controller = self.controller
+        controller.placement_offset = [offset * ux, offset * uy]
+        controller.gains = replace(controller.gains, thrust_knee=thrust)
+        if controller.hops > 0:  # from the first touchdown on, the controller's thrust is this hop's
+            controller.thrust_knee = thrust
+        self.offset, self.thrust = offset, thrust
+
     def _observe(self, readings: Readings) -> np.ndarray:
         vx, vy, speed, (ux, uy) = self._velocity_frame()
         roll, pitch, yaw = base_rpy(readings)
@@ -299,12 +325,7 @@ class MonopedHopLevelEnv(MonopedEnv):
 
     def _reward_and_termination(self, observation: np.ndarray, readings: Readings) -> StepOutcome:
         p = self.params
-        position = readings.odometry(ODOMETRY_SENSOR).position
-        info: dict[str, Any] = {"fell": self.fell, "base_height": position[2],
-                                "x_travelled": position[0] - self.start_x, **self.hop_tracker.summary(),
-                                "episode_time": readings.stamp - self.episode_start, "hop_time": self.hop_time,
-                                "drift": math.dist(position[:2], self.start_xy), "offset": self.offset,
-                                "thrust_knee": self.thrust}
+        info = {**self._hop_info(readings), "offset": self.offset, "thrust_knee": self.thrust}
         if self.fell:
             return {"fall": p.done_reward}, True, info
         return {"alive": p.alive_reward * self.hop_time, "speed": -p.speed_weight * float(observation[2])}, False, info
