@@ -10,8 +10,7 @@ from moving_cube_training.one_disk_walk import ONE_DISK_WALK
 from robot_rl.agents import find_agent
 from robot_rl.params import MAX_COUNT
 from workspace_tools import sweep_spec
-from workspace_tools.sweep_spec import (SweepError, parse_seeds, parse_sweep, trial_agent_config, trial_config,
-                                        trial_name)
+from workspace_tools.sweep_spec import SweepError, parse_seeds, parse_sweep, trial_config, trial_name
 from workspace_tools.sweep_table import TrialResult, plot_curves, table_csv, table_markdown
 
 
@@ -89,12 +88,12 @@ def test_an_agent_parameter_goes_to_the_agent_config_and_names_the_trials():
     assert [t.name for t in trials] == ["seed=0,learning_rate=0.0001", "seed=0,learning_rate=0.0003"]
     assert trials[1].changes == {"alpha": 0.2} and trials[1].agent_changes == {"learning_rate": 3e-4}
     agent = find_agent("dqn")
-    document = trial_agent_config(agent, ONE_DISK_WALK, trials[1])
+    document = sweep_spec.trial_agent_config(agent, ONE_DISK_WALK, trials[1])
     assert agent.load_params_from(document, "trial") == \
         agent.load_params(agent.config_for(ONE_DISK_WALK)).with_changes("expected", learning_rate=3e-4)
     config = ONE_DISK_WALK.params_from_document(trial_config(ONE_DISK_WALK, trials[1], spec.max_steps), "trial")
     assert config.nepisodes == MAX_COUNT and config.alpha == 0.2, "the step budget decides, not the episodes"
-    assert trial_agent_config(find_agent("qlearn"), ONE_DISK_WALK, trials[1]) is None
+    assert sweep_spec.trial_agent_config(find_agent("qlearn"), ONE_DISK_WALK, trials[1]) is None
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -77,8 +77,8 @@ class NodeParams(Params):
     quiet: bool = param(default=False, doc="the EP: lines at debug level")
     video: bool = param(default=True, doc="video.mp4 of the greedy policy once trained")
     agent: str = param(default=DEFAULT_AGENT, doc="a name in robot_rl.agents")
-    agent_config: str = param(default="", doc="a deep agent's YAML; empty: the task's config/agents/<task>.<agent>.yaml "
-                                              "if its package has one, else robot_rl/config/<agent>.yaml")
+    agent_config: str = param(default="", doc="a deep agent's YAML; empty: the task package's "
+                                              "config/agents/<task>.<agent>.yaml, else robot_rl/config/<agent>.yaml")
     max_steps: int = param(low=0, high=10**12, default=0, doc="a deep agent's env step budget; 0: nepisodes decides")
     envs: int = param(low=1, default=1, doc="envs; more than 1: workers with a master and a sim each")
     cluster: str = param(default="", doc="empty: the workers on this machine; ray or HOST:PORT: Ray actors there")

@@ -61,9 +61,9 @@ from robot_rl.cluster import ClusterError
 from robot_rl.ledger import format_duration
 from robot_rl.private_sim import free_port, set_pdeathsig, stop_process
 from robot_rl.results import RunDirectory
+from workspace_tools import sweep_spec
 from workspace_tools.processes import launch_args
-from workspace_tools.sweep_spec import (SweepError, SweepSpec, Trial, format_value, parse_sweep, trial_agent_config,
-                                       trial_config)
+from workspace_tools.sweep_spec import SweepError, SweepSpec, Trial, format_value, parse_sweep, trial_config
 from workspace_tools.sweep_table import TrialResult, plot_curves, write_table
 
 INTERRUPTED = 130
@@ -297,7 +297,7 @@ def _open_sweep(spec: SweepSpec) -> tuple[SweepSpec, Path]:
     for trial in trials:
         write_text_atomic(sweep_dir / "configs" / f"{trial.name}.yaml",
                           yaml.safe_dump(trial_config(spec.task, trial, spec.max_steps), sort_keys=False))
-        agent_document = trial_agent_config(spec.agent, spec.task, trial)
+        agent_document = sweep_spec.trial_agent_config(spec.agent, spec.task, trial)
         if agent_document is not None:
             write_text_atomic(_agent_config_file(sweep_dir, trial), yaml.safe_dump(agent_document, sort_keys=False))
     (sweep_dir / RESULTS_LINK).mkdir()

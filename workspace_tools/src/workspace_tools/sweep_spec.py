@@ -139,7 +139,8 @@ def parse_seeds(text: str) -> tuple[int, ...]:
     return tuple(seeds)
 
 
-def _scalar_fields(params_type: type[Params]) -> tuple[str, ...]:
+def _scalar_fields(params_type: Any) -> tuple[str, ...]:
+    """The names of a params dataclass's fields of a plain type (bool, int, float, str)."""
     hints = typing.get_type_hints(params_type)
     return tuple(f.name for f in dataclasses.fields(params_type) if hints[f.name] in SCALARS)
 
