@@ -1,6 +1,7 @@
 """`./ws sweep` (workspace_tools.sweep) on a real Ray cluster of two nodes on this machine
 (workspace_tools.ray_cluster), each trial a real training launch on a master of its own: a 3-seed sweep writes
-3 run folders and one table, each run the same as that seed's run alone; a sweep whose driver is killed
+3 run folders and one table, each run the same as that seed's run alone; a DQN sweep trains each trial with
+the task's own DQN file and the trial's values, for the step budget it gives; a sweep whose driver is killed
 mid-run leaves no training process behind and, resumed, ends with every episode once, the checkpointed ones
 as they were."""
 import csv
@@ -116,6 +117,25 @@ def test_a_three_seed_sweep_writes_three_runs_each_as_the_seed_alone_and_one_tab
     assert (sweep / "learning_curves.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     for seed in range(3):
         assert_same_run(sweep / f"seed={seed}", run_alone(tmp_path, seed, nepisodes=3, nsteps=50))
+    assert training_processes(cluster) == []
+
+
+def test_a_deep_agent_sweep_sets_the_agent_s_params_and_step_budget_of_each_trial(cluster, tmp_path):
+    results, log = tmp_path / "results", tmp_path / "sweep.log"
+    code = finish(start_sweep(cluster, results, log, "agent:=dqn", "seeds:=0", "learning_rate:=1e-4,3e-4",
+                              "learning_starts:=20", "max_steps:=60", "nsteps:=20", "name:=deep",
+                              "eval_episodes:=1"), log)
+    output = log.read_text()
+    assert code == 0, output[-4000:]
+    sweep = results / "moving_cube-dqn" / "deep"
+    for name, rate in (("seed=0,learning_rate=0.0001", 1e-4), ("seed=0,learning_rate=0.0003", 3e-4)):
+        summary = json.loads((sweep / name / "summary.json").read_text())
+        checkpoint = json.loads((sweep / name / "agent.json").read_text())
+        assert summary["completed"] and summary["env_steps"] == 60, "the step budget, not nepisodes, ended it"
+        assert summary["agent_config"] == str(sweep / "configs" / f"{name}.agent.yaml")
+        tuned = yaml.safe_load((REPO / "moving_cube_training/config/agents/one_disk_walk.dqn.yaml").read_text())
+        assert checkpoint["agent_params"] == tuned | {"learning_rate": rate, "learning_starts": 20}, \
+            "the task's own DQN file with the trial's values"
     assert training_processes(cluster) == []
 
 

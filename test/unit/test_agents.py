@@ -1,5 +1,6 @@
 """The agent registry (robot_rl.agents): names, default configs, results folders, checkpoints, the
 launch files' list of agents and the `needs-deep` question ./ws asks. No ROS master."""
+import dataclasses
 import re
 import subprocess
 import sys
@@ -34,6 +35,32 @@ def test_every_agent_has_a_loadable_default_config(name):
     else:
         assert isinstance(params, Params) and agent.config_path.name == f"{name}.yaml"
         assert agent.load_params_from(params.to_mapping(), "test") == params
+
+
+def test_a_task_s_own_agent_config_is_picked_where_there_is_one(tmp_path):
+    from hopper_training.monoped_env import STAY_UP
+    agent = find_agent("dqn")
+    own = agent.task_config_path(ONE_DISK_WALK)
+    assert own.parent == ONE_DISK_WALK.config_path.parent / "agents" and own.name == "one_disk_walk.dqn.yaml"
+    assert agent.config_for(ONE_DISK_WALK) == own and own.is_file(), "the cube's tuned DQN config"
+    assert agent.load_params(own) != agent.load_params(), "tuned: not the general file's values"
+    assert not agent.task_config_path(STAY_UP).exists() and agent.config_for(STAY_UP) == agent.config_path
+    no_file = dataclasses.replace(ONE_DISK_WALK, name="no_such_task")
+    assert agent.config_for(no_file) == agent.config_path, "no file of the task's own: the agent's general one"
+    assert find_agent("qlearn").config_for(ONE_DISK_WALK) is None and \
+        find_agent("qlearn").task_config_path(ONE_DISK_WALK) is None, "tabular's params are the task's"
+
+
+def test_every_task_s_agent_config_names_a_task_and_an_agent_and_loads():
+    from hopper_training import TASKS as HOPPER_TASKS
+    from moving_cube_training import TASKS as CUBE_TASKS
+    for package, tasks in (("moving_cube_training", CUBE_TASKS), ("hopper_training", HOPPER_TASKS)):
+        for path in sorted((ROOT / package / "config" / "agents").glob("*")):
+            task_name, _, rest = path.name.partition(".")
+            agent_name, _, suffix = rest.partition(".")
+            assert suffix == "yaml" and task_name in [t.name for t in tasks], f"{path}: not <task>.<agent>.yaml"
+            assert isinstance(find_agent(agent_name).load_params(path), Params)
+            assert "./ws sweep" in path.read_text(), f"{path}: names the sweep that chose it"
 
 
 def test_results_folders_and_checkpoints():

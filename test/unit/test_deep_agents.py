@@ -108,7 +108,8 @@ def train(tmp_path, agent, envs, resume=False, nepisodes=6, max_steps=None, log=
         make_env(ONE_DISK_WALK, params=params, backend="direct", seed=params.seed)
     lines = [] if log is None else log
     trainer = DeepTrainer(env, ONE_DISK_WALK, params, find_agent(agent), agent_params, run,
-                          TrainingHooks(log=lines.append, checkpoint_every=2), resume=resume, max_steps=max_steps)
+                          TrainingHooks(log=lines.append, checkpoint_every=2), resume=resume, max_steps=max_steps,
+                          agent_config=find_agent(agent).config_for(ONE_DISK_WALK))
     try:
         return run, trainer.train()
     finally:
@@ -132,6 +133,8 @@ def test_a_deep_run_writes_every_results_file(tmp_path, agent, envs, monkeypatch
     assert summary["env_steps"] >= sum(r.steps for r in records)
     checkpoint = json.loads((run.path / "agent.json").read_text())
     assert (checkpoint["episode"], checkpoint["agent"], checkpoint["envs"]) == (6, agent, envs)
+    tuned = str(find_agent(agent).task_config_path(ONE_DISK_WALK))
+    assert summary["agent_config"] == checkpoint["agent_config"] == tuned, "the run names the file of its params"
     assert sum(line.startswith("EP: ") for line in log) == 6
     if envs > 1:
         assert any(" - env 2/2 (episodes per env: " in line for line in log)

@@ -1,5 +1,5 @@
-"""The sweep's grammar (seeds, lists of any training parameter, one-line errors), its trials and their names,
-and the table writer (workspace_tools.sweep_spec, sweep_table; no Ray)."""
+"""The sweep's grammar (seeds, lists of any training or agent parameter, one-line errors), its trials and
+their names, and the table writer (workspace_tools.sweep_spec, sweep_table; no Ray)."""
 import csv
 import io
 
@@ -7,6 +7,9 @@ import pytest
 import yaml
 
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from robot_rl.agents import find_agent
+from robot_rl.params import MAX_COUNT
+from workspace_tools import sweep_spec
 from workspace_tools.sweep_spec import SweepError, parse_seeds, parse_sweep, trial_config, trial_name
 from workspace_tools.sweep_table import TrialResult, plot_curves, table_csv, table_markdown
 
@@ -75,6 +78,43 @@ def test_bad_arguments_get_one_line(argv, message):
     with pytest.raises(SweepError) as error:
         parse_sweep(argv)
     assert str(error.value).startswith(message) and "\n" not in str(error.value)
+
+
+def test_an_agent_parameter_goes_to_the_agent_config_and_names_the_trials():
+    spec = parse_sweep(["cube", "agent:=dqn", "seeds:=0", "learning_rate:=1e-4,3e-4", "alpha:=0.2", "max_steps:=500"])
+    assert spec.agent_grid == ("learning_rate",) and spec.max_steps == 500
+    assert dict(spec.grid) == {"learning_rate": (1e-4, 3e-4), "alpha": (0.2,)}
+    trials = spec.trials()
+    assert [t.name for t in trials] == ["seed=0,learning_rate=0.0001", "seed=0,learning_rate=0.0003"]
+    assert trials[1].changes == {"alpha": 0.2} and trials[1].agent_changes == {"learning_rate": 3e-4}
+    agent = find_agent("dqn")
+    document = sweep_spec.trial_agent_config(agent, ONE_DISK_WALK, trials[1])
+    assert agent.load_params_from(document, "trial") == \
+        agent.load_params(agent.config_for(ONE_DISK_WALK)).with_changes("expected", learning_rate=3e-4)
+    config = ONE_DISK_WALK.params_from_document(trial_config(ONE_DISK_WALK, trials[1], spec.max_steps), "trial")
+    assert config.nepisodes == MAX_COUNT and config.alpha == 0.2, "the step budget decides, not the episodes"
+    assert sweep_spec.trial_agent_config(find_agent("qlearn"), ONE_DISK_WALK, trials[1]) is None
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["cube", "agent:=dqn", "learning_rate:=2"], "learning_rate:=2: parameter 'learning_rate' = 2.0 out of range"),
+    (["cube", "agent:=ppo", "exploration_fraction:=0.1"], "unknown parameter 'exploration_fraction': not a "
+     "training parameter of task one_disk_walk (known: alpha,"),
+    (["cube", "learning_rate:=0.1"], "unknown parameter 'learning_rate'"),
+    (["cube", "max_steps:=100"], "max_steps:= is a deep agent's budget of env steps; agent qlearn trains"),
+    (["cube", "agent:=dqn", "max_steps:=0"], "max_steps:=0: expected a whole number >= 1"),
+])
+def test_bad_agent_arguments_get_one_line(argv, message):
+    with pytest.raises(SweepError) as error:
+        parse_sweep(argv)
+    assert str(error.value).startswith(message) and "\n" not in str(error.value)
+
+
+def test_a_name_that_is_both_a_task_s_and_the_agent_s_parameter_is_refused(monkeypatch):
+    monkeypatch.setattr(sweep_spec, "agent_sweepable_params", lambda agent, task: ("learning_rate", "alpha"))
+    with pytest.raises(SweepError, match=r"^alpha:= is ambiguous: both a training parameter of task one_disk_walk "
+                                         r"and one of agent dqn's"):
+        parse_sweep(["cube", "agent:=dqn", "alpha:=0.1,0.2"])
 
 
 def test_a_trial_config_is_the_task_yaml_with_the_trial_in_it():

@@ -1,12 +1,16 @@
 #!/usr/bin/env python3
-"""The course's comparison: every agent of robot_rl.agents on one robot, at the same number of env steps.
+"""The course's comparison: every agent of robot_rl.agents on one task, at the same number of env steps.
 
-  compare_agents.py ROBOT [--seeds 0 1 2] [--nepisodes N] [--eval-seed 0] [--episodes 20] [--output DIR]
+  compare_agents.py ROBOT [--task TASK] [--seeds 0 1 2] [--nepisodes N] [--eval-seed 0] [--episodes 20]
+                    [--output DIR]
 
 For each seed (the task's `seed` param: Q-learning's RNG, SB3's seed; the sim's noise seed too), over
-ROS with one env, as `./ws run ROBOT agent:=...` trains: the first agent (tabular Q-learning) for the
-task config's nepisodes (or --nepisodes); then the others (DQN, PPO) with max_steps:= the env steps
-that first run took, so all of them see the same number of env steps. Every final policy is evaluated
+ROS with one env, as `./ws run ROBOT task:=TASK agent:=...` trains: the first agent (tabular Q-learning)
+for the task config's nepisodes (or --nepisodes); then the others that can act in the task's action
+space (DQN and PPO on Discrete actions; PPO and SAC on Box) with max_steps:= the env steps that first
+run took, so all of them see the same number of env steps. Each deep agent's params are its default
+file for the task (the task's own config/agents/<task>.<agent>.yaml if there is one: AgentSpec.config_for),
+recorded per run in the JSON and named in the table. Every final policy is evaluated
 greedily (evaluate.py, --episodes episodes, direct backend, seed --eval-seed). Writes
 DIR/comparison.json (every run), DIR/comparison.md (the table: the headline metric of the greedy
 policy, wall time, env steps/s; mean and range over the seeds) and DIR/learning_curves.png (the
@@ -18,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import importlib
 import json
 import statistics
 import sys
@@ -28,15 +33,13 @@ from typing import Any
 import numpy as np
 import yaml
 
-from hopper_training.monoped_env import STAY_UP
-from moving_cube_training.one_disk_walk import ONE_DISK_WALK
 from robot_rl.agents import AGENTS, AgentSpec
+from robot_rl.params import ParamError
 from robot_rl.results import RunDirectory, moving_average
-from robot_rl.task import TaskSpec
+from robot_rl.task import TaskSpec, find_task, make_env
 from workspace_tools.processes import Processes, RosMaster, launch_args
+from workspace_tools.sweep_spec import ROBOTS
 
-ROBOTS: dict[str, tuple[TaskSpec[Any], str]] = {"cube": (ONE_DISK_WALK, "moving_cube_training"),
-                                                "hopper": (STAY_UP, "hopper_training")}
 RUN_TIMEOUT = 4 * 3600.0
 
 
@@ -57,12 +60,40 @@ def _config_with_seed(task: TaskSpec[Any], seed: int, folder: Path) -> Path:
     return path
 
 
-def _train(robot: str, agent: AgentSpec, seed: int, config: Path, results: Path, log_dir: Path,
-           max_steps: int | None, nepisodes: int | None) -> Path:
+def _task(robot: str, name: str | None) -> TaskSpec[Any]:
+    """The robot's task called `name` (default: its package's first, as ./ws run's)."""
+    tasks = list(importlib.import_module(ROBOTS[robot]).TASKS)
+    return find_task(tasks, name or tasks[0].name)
+
+
+def _agents(task: TaskSpec[Any]) -> list[AgentSpec]:
+    """The agents that can act in the task's action space (DQN: Discrete; SAC: Box), tabular Q-learning first."""
+    env = make_env(task, backend="direct")
+    try:
+        space = env.action_space
+    finally:
+        env.close()
+    agents = []
+    for agent in AGENTS.values():
+        params = agent.load_params(agent.config_for(task))
+        try:
+            if params is not None:
+                params.check_action_space(space, f"agent {agent.name}")  # type: ignore[attr-defined]
+        except ParamError as error:
+            _log(f"{agent.name} left out: {error}")
+            continue
+        agents.append(agent)
+    return agents
+
+
+def _train(robot: str, task: TaskSpec[Any], agent: AgentSpec, seed: int, config: Path, results: Path,
+           log_dir: Path, max_steps: int | None, nepisodes: int | None) -> Path:
     """One training run over ROS (the robot's main.launch); returns its run folder."""
-    _, package = ROBOTS[robot]
+    package = ROBOTS[robot]
     args: dict[str, Any] = dict(config=config, results_dir=results, seed=seed, video="false", quiet="true",
                                 agent=agent.name)
+    if package == "hopper_training":
+        args.update(task=task.name)
     if nepisodes is not None:
         args.update(nepisodes=nepisodes)
     if max_steps is not None:
@@ -76,12 +107,11 @@ def _train(robot: str, agent: AgentSpec, seed: int, config: Path, results: Path,
     if result.returncode != 0:
         raise RuntimeError(f"{robot} {agent.name} seed {seed} failed:\n{result.stdout[-3000:]}\n"
                            f"{result.stderr[-2000:]}")
-    task, _ = ROBOTS[robot]
     return (results / agent.results_name(task) / "latest").resolve()
 
 
 def _evaluate(robot: str, run: Path, episodes: int, seed: int, log_dir: Path) -> dict[str, Any]:
-    _, package = ROBOTS[robot]
+    package = ROBOTS[robot]
     runner = Processes(log_dir)
     try:
         result = runner.run(["rosrun", package, "evaluate.py", "--run", str(run), "--episodes", str(episodes),
@@ -108,10 +138,10 @@ def _machine() -> str:
     return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}"
 
 
-def compare(robot: str, seeds: list[int], eval_seed: int, episodes: int, output: Path,
+def compare(robot: str, task: TaskSpec[Any], seeds: list[int], eval_seed: int, episodes: int, output: Path,
             nepisodes: int | None) -> dict[str, Any]:
-    task, _ = ROBOTS[robot]
     output.mkdir(parents=True, exist_ok=True)
+    agents = _agents(task)
     results = output / "runs"
     headline = task.headline_metric
     greedy_key = "success_rate" if headline == "success" else f"mean_{headline}"
@@ -120,20 +150,23 @@ def compare(robot: str, seeds: list[int], eval_seed: int, episodes: int, output:
                               "seeds": seeds, "eval_seed": eval_seed, "eval_episodes": episodes,
                               "qlearn_nepisodes": nepisodes or task.default_params().nepisodes,
                               "running_step": task.default_params().running_step,
-                              "headline_metric": headline, "greedy_metric": greedy_key, "runs": []}
+                              "headline_metric": headline, "greedy_metric": greedy_key,
+                              "agents": [agent.name for agent in agents], "runs": []}
     with tempfile.TemporaryDirectory(prefix="compare-") as tmp_dir:
         tmp = Path(tmp_dir)
         for seed in seeds:
             config = _config_with_seed(task, seed, output)
             budget = None
-            for agent in AGENTS.values():
-                run = _train(robot, agent, seed, config, results, tmp / f"{agent.name}-{seed}", budget, nepisodes)
+            for agent in agents:
+                run = _train(robot, task, agent, seed, config, results, tmp / f"{agent.name}-{seed}", budget,
+                             nepisodes)
                 summary = json.loads((run / "summary.json").read_text())
                 if budget is None:  # the first agent's run sets the others' step budget
                     budget = summary["env_steps"]
                 evaluation = _evaluate(robot, run, episodes, eval_seed, tmp / f"eval-{agent.name}-{seed}")
                 steps, curve = _curve(run, headline)
-                entry = {"agent": agent.name, "seed": seed, "run": str(run), "env_steps": summary["env_steps"],
+                entry = {"agent": agent.name, "agent_config": summary.get("agent_config"), "seed": seed,
+                         "run": str(run), "env_steps": summary["env_steps"],
                          "episodes": summary["episodes"], "wall_time_s": summary["wall_time_s"],
                          "env_steps_per_s": summary["env_steps_per_s"], "greedy": evaluation["greedy"],
                          "random": evaluation["random"], "curve_steps": steps, "curve": curve}
@@ -159,12 +192,14 @@ def _write_table(report: dict[str, Any], path: Path) -> None:
              f"{', '.join(map(str, report['seeds']))} (mean (min-max)); greedy policy: "
              f"{report['eval_episodes']} episodes, direct backend, evaluation seed {report['eval_seed']}; "
              f"{report['machine']}, {report['date']}", "",
-             f"| agent | env steps | greedy {key} | random {key} | wall time (s) | env steps/s |",
+             f"| agent (params) | env steps | greedy {key} | random {key} | wall time (s) | env steps/s |",
              "|---|---:|---:|---:|---:|---:|"]
-    for agent in AGENTS:
+    for agent in report.get("agents", AGENTS):
         runs = [r for r in report["runs"] if r["agent"] == agent]
         if runs:
-            lines.append(f"| {agent} | {_stats([r['env_steps'] for r in runs], '{:.0f}')} | "
+            configs = sorted({Path(r["agent_config"]).name for r in runs if r.get("agent_config")})
+            lines.append(f"| {agent} ({', '.join(configs) or 'the task config'}) | "
+                         f"{_stats([r['env_steps'] for r in runs], '{:.0f}')} | "
                          f"{_stats([r['greedy'][key] for r in runs], '{:.2f}')} | "
                          f"{_stats([r['random'][key] for r in runs], '{:.2f}')} | "
                          f"{_stats([r['wall_time_s'] for r in runs], '{:.0f}')} | "
@@ -179,7 +214,8 @@ def _plot(report: dict[str, Any], path: Path) -> None:
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(8, 4.5))
     try:
-        for agent in AGENTS:
+        agents = report.get("agents", list(AGENTS))
+        for agent in agents:
             runs = [r for r in report["runs"] if r["agent"] == agent and r["curve_steps"]]
             if not runs:
                 continue
@@ -190,7 +226,7 @@ def _plot(report: dict[str, Any], path: Path) -> None:
             ax.fill_between(grid, curves.min(axis=0), curves.max(axis=0), alpha=0.2)
         ax.set_xlabel("env steps")
         ax.set_ylabel(f"{report['headline_metric']} (moving average of 50 episodes)")
-        ax.set_title(f"{report['task']}: {', '.join(AGENTS)} (seeds {', '.join(map(str, report['seeds']))})")
+        ax.set_title(f"{report['task']}: {', '.join(agents)} (seeds {', '.join(map(str, report['seeds']))})")
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best")
         fig.tight_layout()
@@ -202,6 +238,7 @@ def _plot(report: dict[str, Any], path: Path) -> None:
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("robot", choices=sorted(ROBOTS))
+    parser.add_argument("--task", help="a task of the robot (default: its first, as ./ws run's)")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--nepisodes", type=int, help="tabular Q-learning's episodes (default: the task config's)")
     parser.add_argument("--eval-seed", type=int, default=0)
@@ -209,13 +246,17 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--output", type=Path, help="default: comparison/<robot>")
     parser.add_argument("--table-only", action="store_true", help="rewrite the table and plot from comparison.json")
     args = parser.parse_args(argv)
-    output = args.output or Path("comparison") / args.robot
+    try:
+        task = _task(args.robot, args.task)
+    except ParamError as error:
+        parser.error(str(error))
+    output = args.output or Path("comparison") / (args.robot if args.task is None else f"{args.robot}-{task.name}")
     if args.table_only:
         report = json.loads((output / "comparison.json").read_text())
         _write_table(report, output / "comparison.md")
         _plot(report, output / "learning_curves.png")
         return 0
-    compare(args.robot, args.seeds, args.eval_seed, args.episodes, output.resolve(), args.nepisodes)
+    compare(args.robot, task, args.seeds, args.eval_seed, args.episodes, output.resolve(), args.nepisodes)
     return 0
 
 

@@ -1,8 +1,9 @@
 """The agents a run can train, each an `AgentSpec` in one registry (AGENTS), as tasks are TaskSpecs.
 
 A spec says everything the training node, evaluate.py, compare_agents.py, the bench and `./ws` need:
-the params (None: the task's; else a Params type loaded from robot_rl/config/<agent>.yaml), the
-checkpoint file, the results folder, how to make N envs, build the trainer and load a trained run's
+the params (None: the task's; else a Params type loaded from a YAML: the task's own,
+<task package>/config/agents/<task>.<agent>.yaml, where there is one, else robot_rl/config/<agent>.yaml),
+the checkpoint file, the results folder, how to make N envs, build the trainer and load a trained run's
 greedy policy, and whether it needs requirements-deep.txt. The implementation is named "module:attr"
 (as gymnasium's entry points) and imported only when used, so that this module never imports torch.
 Adding an agent: one module with its trainer and policy loader, one line in AGENTS.
@@ -51,7 +52,7 @@ def _resolve(reference: str) -> Any:
 @dataclass(frozen=True)
 class AgentSpec:
     """One agent. The "module:attr" references are imported when used:
-    `trainer` -> make_trainer(spec, env, task, params, run, hooks, resume, agent_params, max_steps),
+    `trainer` -> make_trainer(spec, env, task, params, run, hooks, resume, agent_params, max_steps, agent_config),
     `vector_env` -> a function (task, n, backend=, seed=, params=, ros_timeout=, cluster=) making N envs,
     `policy` -> a function (TrainedRun, its checkpoint) -> PolicyMaker, `params` -> a Params type."""
 
@@ -70,8 +71,21 @@ class AgentSpec:
 
     @property
     def config_path(self) -> Path | None:
-        """robot_rl/config/<agent>.yaml, the agent's default params (None: it has none of its own)."""
+        """robot_rl/config/<agent>.yaml, the agent's params for any task (None: it has none of its own)."""
         return None if self.params is None else package_path("robot_rl") / "config" / f"{self.name}.yaml"
+
+    def task_config_path(self, task: TaskSpec[Any]) -> Path | None:
+        """<task package>/config/agents/<task>.<agent>.yaml, the agent's params tuned for `task` (it may not exist;
+        None: the agent has no params of its own)."""
+        if self.params is None:
+            return None
+        return package_path(task.package) / "config" / "agents" / f"{task.name}.{self.name}.yaml"
+
+    def config_for(self, task: TaskSpec[Any]) -> Path | None:
+        """The agent's default params file for `task`: its task_config_path if there is one, else config_path
+        (rl-baselines3-zoo's practice: hyperparameters per agent and task, a general file for the rest)."""
+        tuned = self.task_config_path(task)
+        return tuned if tuned is not None and tuned.is_file() else self.config_path
 
     def load_params(self, path: Path | None = None) -> Params | None:
         """The agent's params from `path` (default: config_path); ParamError names the key. May raise
@@ -93,10 +107,11 @@ class AgentSpec:
 
     def make_trainer(self, env: Any, task: TaskSpec[Any], params: TaskParams, run: RunDirectory,
                      hooks: TrainingHooks, resume: bool = False, agent_params: Params | None = None,
-                     max_steps: int | None = None) -> Trainer:
-        """The trainer of `env` (one env, or N from make_vector_env); `max_steps`: a deep agent's step budget."""
+                     max_steps: int | None = None, agent_config: Path | None = None) -> Trainer:
+        """The trainer of `env` (one env, or N from make_vector_env); `max_steps`: a deep agent's step budget;
+        `agent_config`: the file `agent_params` came from (the run's summary.json and checkpoint name it)."""
         make: Callable[..., Trainer] = _resolve(self.trainer)
-        return make(self, env, task, params, run, hooks, resume, agent_params, max_steps)
+        return make(self, env, task, params, run, hooks, resume, agent_params, max_steps, agent_config)
 
     def greedy_policy(self, run: TrainedRun, checkpoint: dict[str, Any]) -> PolicyMaker:
         """The trained run's greedy policy; ValueError if the checkpoint is not this agent's."""

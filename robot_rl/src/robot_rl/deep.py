@@ -351,8 +351,10 @@ class DeepTrainer(Learner):
 
     def __init__(self, env: VecEnv | gymnasium.Env[Any, Any], task: TaskSpec[Any], params: TaskParams,
                  agent: AgentSpec, agent_params: NetworkParams, run: RunDirectory,
-                 hooks: TrainingHooks = DEFAULT_HOOKS, resume: bool = False, max_steps: int | None = None):
+                 hooks: TrainingHooks = DEFAULT_HOOKS, resume: bool = False, max_steps: int | None = None,
+                 agent_config: Path | None = None):
         torch.set_num_threads(1)
+        self.agent_config = None if agent_config is None else str(agent_config)  # where agent_params came from
         self.env: VecEnv = env if isinstance(env, VecEnv) else DummyVecEnv([lambda: env])
         self.task, self.params, self.agent, self.run = task, params, agent, run
         self.on_step, self.should_stop = hooks.on_step, hooks.should_stop
@@ -425,7 +427,8 @@ class DeepTrainer(Learner):
         try:
             self.model.save(str(partial))
             self.run.checkpoint({"format": CHECKPOINT_FORMAT, "task": self.task.env_id, "agent": self.agent.name,
-                                 "agent_params": self.agent_params.to_mapping(), "envs": self.n_envs,
+                                 "agent_params": self.agent_params.to_mapping(), "agent_config": self.agent_config,
+                                 "envs": self.n_envs,
                                  "episode": self.state.episode, "num_timesteps": int(self.model.num_timesteps),
                                  "model_sha256": _sha256(partial), "state": dataclasses.asdict(self.state)})
         except BaseException:
@@ -444,7 +447,8 @@ class DeepTrainer(Learner):
         return f", exploration {self._exploration():.3f}" if isinstance(self.model, DQN) else ""
 
     def summary_fields(self) -> dict[str, Any]:
-        return {"agent": self.agent.name, "envs": self.n_envs, "max_steps": self.max_steps}
+        return {"agent": self.agent.name, "agent_config": self.agent_config, "envs": self.n_envs,
+                "max_steps": self.max_steps}
 
     def closing_lines(self, summary: dict[str, Any], last: Sequence[EpisodeRecord]) -> list[str]:
         state, metric = self.state, self.task.headline_metric
@@ -501,9 +505,9 @@ class DeepPolicy:
 
 def make_trainer(agent: AgentSpec, env: VecEnv | gymnasium.Env[Any, Any], task: TaskSpec[Any], params: TaskParams,
                  run: RunDirectory, hooks: TrainingHooks, resume: bool, agent_params: Params | None,
-                 max_steps: int | None) -> DeepTrainer:
+                 max_steps: int | None, agent_config: Path | None) -> DeepTrainer:
     assert isinstance(agent_params, NetworkParams)
-    return DeepTrainer(env, task, params, agent, agent_params, run, hooks, resume, max_steps)
+    return DeepTrainer(env, task, params, agent, agent_params, run, hooks, resume, max_steps, agent_config)
 
 
 def greedy_policy(run: TrainedRun, checkpoint: dict[str, Any]) -> Callable[[gymnasium.Env[Any, Any], int], DeepPolicy]:

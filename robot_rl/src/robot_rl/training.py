@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import gymnasium
@@ -153,8 +154,9 @@ class QLearningTrainer(Learner):
 
 def make_trainer(agent: AgentSpec, env: gymnasium.Env[Any, Any], task: TaskSpec[Any], params: TaskParams,
                  run: RunDirectory, hooks: TrainingHooks, resume: bool, agent_params: Params | None,
-                 max_steps: int | None) -> QLearningTrainer:
-    """The tabular trainer of `env`: one env, or robot_rl.vector's N (VectorQLearningTrainer)."""
+                 max_steps: int | None, agent_config: Path | None) -> QLearningTrainer:
+    """The tabular trainer of `env`: one env, or robot_rl.vector's N (VectorQLearningTrainer); its params are the
+    task's (no agent_params, agent_config), its budget nepisodes (no max_steps)."""
     if isinstance(env, gymnasium.vector.VectorEnv):
         from .vector_training import VectorQLearningTrainer
         return VectorQLearningTrainer(env, task, params, run, hooks, resume)

@@ -77,7 +77,8 @@ class NodeParams(Params):
     quiet: bool = param(default=False, doc="the EP: lines at debug level")
     video: bool = param(default=True, doc="video.mp4 of the greedy policy once trained")
     agent: str = param(default=DEFAULT_AGENT, doc="a name in robot_rl.agents")
-    agent_config: str = param(default="", doc="a deep agent's YAML; empty: robot_rl/config/<agent>.yaml")
+    agent_config: str = param(default="", doc="a deep agent's YAML; empty: the task package's "
+                                              "config/agents/<task>.<agent>.yaml, else robot_rl/config/<agent>.yaml")
     max_steps: int = param(low=0, high=10**12, default=0, doc="a deep agent's env step budget; 0: nepisodes decides")
     envs: int = param(low=1, default=1, doc="envs; more than 1: workers with a master and a sim each")
     cluster: str = param(default="", doc="empty: the workers on this machine; ray or HOST:PORT: Ray actors there")
@@ -144,18 +145,19 @@ def _write_video(tasks: Sequence[TaskSpec[Any]], task: TaskSpec[Any], run: RunDi
                   report["horizon_s"], time.monotonic() - start, metrics)
 
 
-def _read_agent(node: NodeParams) -> tuple[AgentSpec, Params | None]:
-    """The agent and its own params (None: it has none)."""
+def _read_agent(node: NodeParams, task: TaskSpec[Any]) -> tuple[AgentSpec, Params | None, Path | None]:
+    """The agent, its own params (None: it has none) and their file: ~agent_config, else the task's own."""
     try:
         agent = find_agent(node.agent)
     except ParamError as error:
         raise ParamError(f"{rospy.get_name()}: parameter '~agent': {error}") from None
+    config = Path(node.agent_config).resolve() if node.agent_config else agent.config_for(task)
     try:
-        agent_params = agent.load_params(Path(node.agent_config) if node.agent_config else None)
+        agent_params = agent.load_params(config)
     except ModuleNotFoundError as error:
         raise ParamError(f"agent {agent.name} needs {error.name}, which is not installed: ./ws run ... "
                          f"agent:={agent.name} installs requirements-deep.txt (or ./ws setup deep)") from None
-    return agent, agent_params
+    return agent, agent_params, config
 
 
 def _open_run(node: NodeParams, results_name: str, checkpoint_name: str, params: TaskParams,
@@ -198,7 +200,7 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
         node = _read_node_params()
         task = find_task(list(tasks), node.task or tasks[0].name)
         params = _read_params(task, node)
-        agent, agent_params = _read_agent(node)
+        agent, agent_params, agent_config = _read_agent(node, task)
     except ParamError as error:
         return _fail(str(error))
     results_root = node.results_root
@@ -225,6 +227,8 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     try:
         run = _open_run(node, results_name, checkpoint_name, params, task)
         rospy.loginfo("Results go to %s", run.path)
+        if agent_config is not None:
+            rospy.loginfo("Agent %s's params: %s", agent.name, agent_config)
         reward_pub = rospy.Publisher(task.reward_topic, Float64, queue_size=10)
         episode_reward_pub = rospy.Publisher(task.episode_reward_topic, Float64, queue_size=10)
 
@@ -243,7 +247,7 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
         hooks = TrainingHooks(log=rospy.loginfo, log_episode=log_episode, on_step=on_step, on_episode=on_episode,
                               should_stop=should_stop)
         trainer = agent.make_trainer(env, task, params, run, hooks, resume=node.resume, agent_params=agent_params,
-                                     max_steps=node.max_steps or None)
+                                     max_steps=node.max_steps or None, agent_config=agent_config)
         summary = trainer.train()
     except (FileNotFoundError, FileExistsError, ValueError) as error:
         return _fail(str(error))

@@ -1,19 +1,20 @@
 """`./ws sweep`: many whole training runs of one task (trials) over seeds and training params, on Ray Tune.
 
-  python -m workspace_tools.sweep [ROBOT] [task:=T] [agent:=A] [seeds:=0-9] [NAME:=v1,v2 ...] [name:=SWEEP]
-                                  [resume:=true] [cluster:=ADDRESS] [concurrent:=N] [max_failures:=N]
-                                  [eval_episodes:=N] [eval_seed:=S] [results_dir:=DIR]
+  python -m workspace_tools.sweep [ROBOT] [task:=T] [agent:=A] [seeds:=0-9] [NAME:=v1,v2 ...] [max_steps:=N]
+                                  [name:=SWEEP] [resume:=true] [cluster:=ADDRESS] [concurrent:=N]
+                                  [max_failures:=N] [eval_episodes:=N] [eval_seed:=S] [results_dir:=DIR]
 
 The grammar and the trials' names: workspace_tools.sweep_spec. Each trial is one Ray Tune trial (one
 CPU) that runs today's training exactly as `./ws run` does (roslaunch_checked.py and the robot's
 main.launch, on a ROS master of its own on a free loopback port, video:=false) with a config that is the
-task's YAML with the trial's seed and parameters, then evaluates the trained run in-process with
+task's YAML with the trial's seed and parameters (and, for a deep agent, an agent_config:= that is the
+agent's default file for the task with the trial's agent parameters), then evaluates the trained run in-process with
 evaluate.py's code (robot_rl.evaluation: greedy and random, eval_episodes each, direct backend,
 evaluation seed eval_seed) into evaluation.json. Everything goes to the sweep's folder
 DIR/<results name>/<SWEEP>/ (SWEEP: name:=, else the UTC time):
 
   sweep.yaml            the arguments that define the trials, and the trials
-  configs/<trial>.yaml  each trial's config
+  configs/<trial>.yaml  each trial's config (configs/<trial>.agent.yaml: a deep agent's)
   <trial>/              each trial's run folder, as ./ws run writes one, plus evaluation.json
   logs/<trial>/         each trial's roslaunch output (training.log) and ROS logs
   tune/                 Ray Tune's own folder (its storage path)
@@ -60,6 +61,7 @@ from robot_rl.cluster import ClusterError
 from robot_rl.ledger import format_duration
 from robot_rl.private_sim import free_port, set_pdeathsig, stop_process
 from robot_rl.results import RunDirectory
+from workspace_tools import sweep_spec
 from workspace_tools.processes import launch_args
 from workspace_tools.sweep_spec import SweepError, SweepSpec, Trial, format_value, parse_sweep, trial_config
 from workspace_tools.sweep_table import TrialResult, plot_curves, write_table
@@ -89,6 +91,8 @@ class TrialJob:
     checkpoint_name: str
     eval_episodes: int
     eval_seed: int
+    agent_config: str = ""      # the trial's agent_config:= ("": the agent has no params of its own)
+    max_steps: int = 0          # a deep agent's env step budget (0: nepisodes decides)
 
     @property
     def run_dir(self) -> Path:
@@ -135,10 +139,13 @@ def _train(job: TrialJob) -> None:
     env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{free_port()}", ROS_HOSTNAME="127.0.0.1",
                ROS_IP="127.0.0.1", ROS_LOG_DIR=str(job.log_dir), ROS_HOME=str(job.log_dir))
     task_arg = [f"task:={job.task}"] if job.package == "hopper_training" else []
+    agent_args = launch_args(**{"agent_config": job.agent_config} if job.agent_config else {},
+                             **{"max_steps": job.max_steps} if job.max_steps else {})
     command = ["rosrun", "workspace_tools", "roslaunch_checked.py", job.package, "main.launch", *task_arg,
                # seed:= as ./ws run seed:=S passes it: the launch gives it to the sim (its sensor noise) too
                *launch_args(config=job.config_file, results_dir=Path(job.sweep_dir) / RESULTS_LINK, run=job.name,
-                            seed=job.seed, resume=str(resume).lower(), agent=job.agent, video="false", quiet="true")]
+                            seed=job.seed, resume=str(resume).lower(), agent=job.agent, video="false", quiet="true"),
+               *agent_args]
     log_path = job.log_dir / "training.log"
     with open(log_path, "ab") as log:
         log.write(f"\n=== {datetime.datetime.now(datetime.UTC).isoformat()} {' '.join(command)}\n".encode())
@@ -243,11 +250,18 @@ def _tune_callback(progress: Progress) -> Any:
     return ProgressCallback()
 
 
+def _agent_config_file(sweep_dir: Path, trial: Trial) -> Path:
+    return sweep_dir / "configs" / f"{trial.name}.agent.yaml"
+
+
 def _jobs(spec: SweepSpec, sweep_dir: Path, trials: Sequence[Trial]) -> list[TrialJob]:
-    return [TrialJob(name=t.name, seed=t.seed, params={k: t.changes[k] for k in spec.varied},
+    has_config = spec.agent.params is not None
+    return [TrialJob(name=t.name, seed=t.seed, params={k: (t.changes | t.agent_changes)[k] for k in spec.varied},
                      sweep_dir=str(sweep_dir), package=spec.package, task=spec.task.name, agent=spec.agent.name,
                      results_name=spec.agent.results_name(spec.task), checkpoint_name=spec.agent.checkpoint_name,
-                     eval_episodes=spec.eval_episodes, eval_seed=spec.eval_seed) for t in trials]
+                     eval_episodes=spec.eval_episodes, eval_seed=spec.eval_seed,
+                     agent_config=str(_agent_config_file(sweep_dir, t)) if has_config else "",
+                     max_steps=spec.max_steps) for t in trials]
 
 
 def _open_sweep(spec: SweepSpec) -> tuple[SweepSpec, Path]:
@@ -278,14 +292,19 @@ def _open_sweep(spec: SweepSpec) -> tuple[SweepSpec, Path]:
                          f"needs another name:=") from None
     spec = dataclasses.replace(spec, name=name)
     trials = spec.trials()
+    agent_config = spec.agent.config_for(spec.task)  # the trials' agent configs start from it
     (sweep_dir / "configs").mkdir()
     for trial in trials:
         write_text_atomic(sweep_dir / "configs" / f"{trial.name}.yaml",
-                          yaml.safe_dump(trial_config(spec.task, trial), sort_keys=False))
+                          yaml.safe_dump(trial_config(spec.task, trial, spec.max_steps), sort_keys=False))
+        agent_document = sweep_spec.trial_agent_config(spec.agent, spec.task, trial)
+        if agent_document is not None:
+            write_text_atomic(_agent_config_file(sweep_dir, trial), yaml.safe_dump(agent_document, sort_keys=False))
     (sweep_dir / RESULTS_LINK).mkdir()
     (sweep_dir / RESULTS_LINK / spec.agent.results_name(spec.task)).symlink_to("..")
     write_text_atomic(sweep_dir / "sweep.yaml", yaml.safe_dump(
         {"args": list(spec.grid_args), "task": spec.task.env_id, "agent": spec.agent.name,
+         "agent_config": None if agent_config is None else str(agent_config), "max_steps": spec.max_steps or None,
          "seeds": list(spec.seeds), "params": {k: list(v) for k, v in spec.grid},
          "trials": [t.name for t in trials]}, sort_keys=False))
     return spec, sweep_dir
@@ -344,7 +363,9 @@ def write_outputs(spec: SweepSpec, sweep_dir: Path, jobs: Sequence[TrialJob]) ->
     results = collect_results(spec, jobs)
     constant = [f"{k}:={','.join(map(format_value, v))}" for k, v in spec.grid if len(v) == 1]
     greedy_key = _greedy_key(spec.task.headline_metric, results[0].greedy if results else {})
-    title = (f"Sweep {spec.name}: {spec.task.env_id}, agent {spec.agent.name}, {len(results)} of {len(jobs)} "
+    agent_config = spec.agent.config_for(spec.task)
+    agent = f"agent {spec.agent.name}" + (f" (from {agent_config.name})" if agent_config is not None else "")
+    title = (f"Sweep {spec.name}: {spec.task.env_id}, {agent}, {len(results)} of {len(jobs)} "
              f"trials{' (' + ', '.join(constant) + ')' if constant else ''}; training metrics over the last 100 "
              f"episodes; greedy and random: {spec.eval_episodes} episodes each, direct backend, evaluation seed "
              f"{spec.eval_seed}. `./ws sweep {' '.join(spec.grid_args)} name:={spec.name}`; {_machine()}, "
