@@ -182,7 +182,8 @@ def test_unknown_task_names_the_known_ones(master, tmp_path):
     result = master.run([*HOPPER_TRAINING, "task:=fly", f"config:={STAY_UP.config_path}",
                          f"results_dir:={tmp_path / 'results'}"], timeout=120)
     assert result.returncode == 1
-    one_line(result.stdout + result.stderr, "unknown task 'fly' (known: stay_up, hop, hop_in_place, residual_in_place, residual_forward)")
+    one_line(result.stdout + result.stderr,
+             "unknown task 'fly' (known: stay_up, hop, hop_in_place, residual_in_place, residual_forward)")
 
 
 @pytest.mark.parametrize("args, expected", [

@@ -221,7 +221,7 @@ class HopController:
     _lost_contact_time: float | None = None
     placement_bias: list[float] = field(default_factory=lambda: [0.0, 0.0])  # m along world x, y: the per-hop sum
     placement_offset: list[float] = field(default_factory=lambda: [0.0, 0.0])  # m along world x, y, set from outside
-    hip_offset: list[float] = field(default_factory=lambda: [0.0, 0.0])  # rad on the flight's haa, hfe, set from outside
+    hip_offset: list[float] = field(default_factory=lambda: [0.0, 0.0])  # rad on the flight IK's haa, hfe, from outside
     _flight_energy: list[float] = field(default_factory=list)  # z + vz^2 / 2g of this flight's readings
     _flight_velocity: list[tuple[float, float]] = field(default_factory=list)  # vx, vy of this flight's readings
 
