@@ -16,7 +16,7 @@ from pybullet_sim.config import ConfigError, parse_robot_config
 from robot_rl.task import make_env
 from robot_rl.video import VideoRecorder, frame_every
 
-CUBE, STAY_UP, HOP, _ = (*moving_cube_training.TASKS, *hopper_training.TASKS)
+CUBE, STAY_UP, HOP = (*moving_cube_training.TASKS, *hopper_training.TASKS)[:3]
 ODOMETRY = "p3d_base_controller"
 # Actions that move each robot: the cube spins its wheel up (the reaction rolls it along y), the
 # monoped swings its hip (it tips over).

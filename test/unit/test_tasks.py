@@ -16,11 +16,13 @@ ALL_TASKS = [*moving_cube_training.TASKS, *hopper_training.TASKS]
 IDS = [task.env_id for task in ALL_TASKS]
 
 
-def test_the_four_tasks_are_registered():
-    assert IDS == ["MovingCubeOneDiskWalk-v0", "Monoped-v0", "MonopedHop-v0", "MonopedHopLevel-v0"]
+def test_the_tasks_are_registered():
+    assert IDS == ["MovingCubeOneDiskWalk-v0", "Monoped-v0", "MonopedHop-v0", "MonopedHopLevel-v0",
+                   "MonopedResidualInPlace-v0", "MonopedResidualForward-v0"]
     assert all(TASKS[env_id] is task for env_id, task in zip(IDS, ALL_TASKS))
     assert find_task(hopper_training.TASKS, "hop").env_id == "MonopedHop-v0"
     assert find_task(hopper_training.TASKS, "hop_in_place").env_id == "MonopedHopLevel-v0"
+    assert find_task(hopper_training.TASKS, "residual_forward").env_id == "MonopedResidualForward-v0"
 
 
 @pytest.mark.parametrize("task", ALL_TASKS, ids=IDS)
@@ -48,12 +50,14 @@ def test_check_env_passes_on_the_direct_backend(task):
 @pytest.mark.parametrize("task", ALL_TASKS, ids=IDS)
 def test_reward_terms_in_info_sum_to_the_reward(task):
     env = make_env(task, backend="direct", seed=1, max_episode_steps=100_000)
-    rng = np.random.default_rng(1)
+    rng, space = np.random.default_rng(1), env.action_space
     seen_terms, fell = set(), False
     try:
         env.reset(seed=1)
         for _ in range(20_000):
-            _, reward, terminated, truncated, info = env.step(int(rng.integers(env.action_space.n)))
+            action = int(rng.integers(space.n)) if isinstance(space, gymnasium.spaces.Discrete) else \
+                rng.uniform(space.low, space.high).astype(space.dtype)
+            _, reward, terminated, truncated, info = env.step(action)
             terms = {key: value for key, value in info.items() if key.startswith("reward_")}
             assert terms, "every step names its reward terms"
             assert sum(terms.values()) == pytest.approx(reward, rel=1e-12, abs=1e-9)
