@@ -15,7 +15,7 @@
 #   ./ws bench [--reps N] [--sections S,...] [--running-step ROBOT=S] [--markdown]  set up (with the deep agents), then the benchmark (--markdown: also docs/performance.md)
 #   ./ws python [ARGS...]       python inside the workspace environment (the venv, the devel space)
 #   ./ws exec CMD [ARGS...]     CMD inside the workspace environment
-#   ./ws sweep [cube|hopper] [seeds:=0-9] [NAME:=V1,V2 ...] [name:=SWEEP] [resume:=true] [cluster:=ray|ADDRESS]
+#   ./ws sweep [cube|hopper] [seeds:=0-9] [NAME:=V1,V2 ...] [max_steps:=N] [name:=SWEEP] [resume:=true] [cluster:=ray|ADDRESS]
 #                               many training runs on Ray Tune, a table and a plot (installs requirements-distributed.txt)
 #   ./ws cluster start|join ADDRESS|stop|status  this machine's Ray node (installs requirements-distributed.txt)
 #   ./ws demo [cube|hopper] [policy:=NAME] [VIDEO.mp4]  a shipped trained policy (<package>/policies/NAME,
