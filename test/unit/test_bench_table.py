@@ -114,7 +114,8 @@ def test_the_distributed_rows_give_each_transport_their_ratio_and_the_recovery_t
     pipe, ray = {"1": 700.0, "2": 1200.0}, {"1": 560.0, "2": 1080.0}
     data["cube"]["distributed"] = {"envs": [1, 2], "steps_per_s": {"pipe": pipe, "ray": ray},
                                    "ratio_ray_to_pipe": {"1": 0.8, "2": 0.9}, "node_loss_recovery_s": 15.64,
-                                   "actors_start_s": 2.21}
+                                   "actors_start_s": 2.21,
+                                   "cpu_ms_per_step": {"pipe": {"1": 0.81, "2": 0.8}, "ray": {"1": 1.9, "2": 1.726}}}
     data["cube"]["per_repetition"].update(ray_to_pipe_1=[0.8, 0.7, 0.85], ray_to_pipe_2=[0.9, 0.88, 0.95])
     lines = table(capsys, data)
     assert cube_cell(lines, "vector env, ros, N = 2, Ray actors, env steps/s") == "1080"
@@ -124,6 +125,8 @@ def test_the_distributed_rows_give_each_transport_their_ratio_and_the_recovery_t
     assert ranges == ["0.70-0.85", "0.88-0.95"], "N = 1, then N = 2"
     assert cube_cell(lines, "node lost: its Ray actor steps again after, s") == "15.6"
     assert cube_cell(lines, "Ray actors, N = 2: start (masters, sims), s") == "2.2"
+    assert cube_cell(lines, "vector env, ros, N = 2, pipe workers, CPU ms/step") == "0.80"
+    assert cube_cell(lines, "vector env, ros, N = 2, Ray actors, CPU ms/step") == "1.73"
 
 
 def test_the_page_says_how_soon_a_sweep_went_on_after_a_node_lost(capsys):

@@ -35,7 +35,9 @@ Sections (--sections, default all):
 - distributed: the gymnasium vector env's env steps/s with its workers as Ray actors (robot_rl.ray_workers)
   against pipe workers, at N = 1 and 2, over ROS, on a one-node Ray cluster of this machine's cores started
   for each repetition (workspace_tools.ray_cluster), its daemons running during both; the ratio Ray / pipe.
-  At N = 1 the difference is a Ray actor call's round trip per env step. Then a node's loss and its recovery
+  At N = 1 the difference is a Ray actor call's round trip per env step. And the CPU time per env step of
+  every process of each (with Ray actors, every process of the cluster too): two cores give a way of stepping
+  envs at most 2 / (its CPU per env step) env steps/s, whatever the scheduling. Then a node's loss and its recovery
   time: on a two-node cluster (workspace_tools.ray_cluster) with one actor on each node, the second node killed
   by PID as a machine lost, the wall time from the kill to the first env step of the actor Ray restarted on the
   head (worker_recovery); and the same for a sweep (cube only): from the kill to the lost trial's training
@@ -184,8 +186,10 @@ def worker_lockstep(robot: str, backend: str, steps: int, running_step: float) -
     return result
 
 
-def _tree_cpu_s() -> float:
-    """CPU seconds used so far by this process and every process below it (workers, masters, sim nodes)."""
+def _tree_cpu_s(cluster_mark: str = "") -> float:
+    """CPU seconds used so far by this process and every process below it (workers, masters, sim nodes), and by
+    every process of the LoopbackCluster whose mark is `cluster_mark` (its daemons, actors, their masters and sim
+    nodes)."""
     parents: dict[int, list[int]] = {}
     stats: dict[int, list[str]] = {}
     for entry in Path("/proc").iterdir():
@@ -196,19 +200,23 @@ def _tree_cpu_s() -> float:
                 continue
             stats[int(entry.name)] = fields
             parents.setdefault(int(fields[1]), []).append(int(entry.name))
-    total, todo = 0.0, [os.getpid()]
+    counted, todo = set(), [os.getpid()]
     while todo:
         pid = todo.pop()
-        if pid in stats:
-            total += _cpu_s(stats[pid])
+        counted.add(pid)
         todo.extend(parents.get(pid, []))
-    return total
+    if cluster_mark:
+        from workspace_tools.launch_reaper import processes_with
+        from workspace_tools.ray_cluster import MARK_VARIABLE
+        counted.update(processes_with(MARK_VARIABLE, cluster_mark))
+    return sum(_cpu_s(stats[pid]) for pid in counted if pid in stats)
 
 
-def worker_vector(robot: str, backend: str, n: int, steps: int, running_step: float, cluster: str = "") -> dict:
+def worker_vector(robot: str, backend: str, n: int, steps: int, running_step: float, cluster: str = "",
+                  cluster_mark: str = "") -> dict:
     """robot_rl.vector's gymnasium vector env of n workers (Ray actors on `cluster` if given): env steps/s (all
     workers together) and the CPU time per env step of every process involved (this one, the workers, their
-    masters and sim nodes; of Ray actors, which are not this process's children, only this process's)."""
+    masters and sim nodes; with Ray actors, every process of the LoopbackCluster marked `cluster_mark`)."""
     import numpy as np
 
     from robot_rl.vector import make_vector_env
@@ -219,10 +227,10 @@ def worker_vector(robot: str, backend: str, n: int, steps: int, running_step: fl
         n_actions = int(env.single_action_space.n)  # type: ignore[attr-defined]
         env.reset(seed=0)
         vector_steps = max(1, steps // n)
-        start, cpu_start = time.perf_counter(), _tree_cpu_s()
+        start, cpu_start = time.perf_counter(), _tree_cpu_s(cluster_mark)
         for _ in range(vector_steps):
             env.step(rng.integers(n_actions, size=n))
-        elapsed, cpu = time.perf_counter() - start, _tree_cpu_s() - cpu_start
+        elapsed, cpu = time.perf_counter() - start, _tree_cpu_s(cluster_mark) - cpu_start
     finally:
         env.close()
     return {"steps_per_s": vector_steps * n / elapsed, "cpu_ms_per_step": 1000.0 * cpu / (vector_steps * n)}
@@ -549,12 +557,13 @@ def _distributed_rep(folder: Path, rep: int, robot: str, steps: int, running_ste
     with LoopbackCluster(folder / "cluster", nodes=1, cpus_per_node=os.cpu_count() or 1) as cluster:
         rates = {}
         for n in DISTRIBUTED_ENVS:
-            for transport, address in (("pipe", ""), ("ray", cluster.address)):
+            for transport, address, mark in (("pipe", "", ""), ("ray", cluster.address, cluster.mark)):
                 processes = Processes(folder / f"{transport}-{n}", ROBOT_RL_CLUSTER_DIR=str(cluster.folder))
-                result = _run_worker(processes, ["vector", robot, "ros", n, steps * n, running_step, address],
+                result = _run_worker(processes, ["vector", robot, "ros", n, steps * n, running_step, address, mark],
                                      timeout=900)
                 rates[transport, n] = result["steps_per_s"]
                 s[f"distributed_{transport}_{n}"].append(rates[transport, n])
+                s[f"distributed_cpu_{transport}_{n}"].append(result["cpu_ms_per_step"])
             s[f"ray_to_pipe_{n}"].append(rates["ray", n] / rates["pipe", n])
     _log(f"rep {rep + 1} {robot}: vector env over ROS, Ray actors / pipe workers: " + ", ".join(
         f"N={n} {rates['ray', n]:.0f}/{rates['pipe', n]:.0f} steps/s = {rates['ray', n] / rates['pipe', n]:.2f}"
@@ -626,6 +635,8 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
                 "steps_per_s": {transport: {str(n): median(s[f"distributed_{transport}_{n}"]) for n in DISTRIBUTED_ENVS}
                                 for transport in ("pipe", "ray")},
                 "ratio_ray_to_pipe": {str(n): median(s[f"ray_to_pipe_{n}"]) for n in DISTRIBUTED_ENVS},
+                "cpu_ms_per_step": {transport: {str(n): median(s[f"distributed_cpu_{transport}_{n}"])
+                                                for n in DISTRIBUTED_ENVS} for transport in ("pipe", "ray")},
                 "node_loss_recovery_s": median(s["node_loss_recovery_s"]),
                 "actors_start_s": median(s["actors_start_s"])}
         if "gazebo" in sections:
@@ -729,6 +740,9 @@ def table_rows(report: dict) -> list[list[str]]:
         _row(rows, report, f"vector env, ros, N = {n}: Ray actors / pipe workers",
              lambda r, n=n: r["distributed"]["ratio_ray_to_pipe"][str(n)], "{:.2f}")
         _range_row(rows, report, "Ray / pipe", f"ray_to_pipe_{n}")
+        for transport, label in (("pipe", "pipe workers"), ("ray", "Ray actors")):
+            _row(rows, report, f"vector env, ros, N = {n}, {label}, CPU ms/step",
+                 lambda r, t=transport, n=n: r["distributed"]["cpu_ms_per_step"][t][str(n)], "{:.2f}")
     _row(rows, report, "Ray actors, N = 2: start (masters, sims), s",
          lambda r: r["distributed"]["actors_start_s"], "{:.1f}")
     _row(rows, report, "node lost: its Ray actor steps again after, s",
