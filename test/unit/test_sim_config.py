@@ -125,11 +125,20 @@ def test_where_prefixes_the_parameter_path(cube_params):
     ("pid", "p", 1e9, f"parameter ~/controllers/{WHEEL}/pid/p must be <= 1e+06, got 1000000000.0"),
     ("pid", "i", 2e6, f"parameter ~/controllers/{WHEEL}/pid/i must be <= 1e+06, got 2000000.0"),
     ("pid", "d", -1e30, f"parameter ~/controllers/{WHEEL}/pid/d must be >= -1e+06, got -1e+30"),
+    ("pid", "i_clamp", 1e7, f"parameter ~/controllers/{WHEEL}/pid/i_clamp must be <= 1e+06, got 10000000.0"),
     ("noise", "gaussian_noise", 5.0, f"parameter ~/sensors/{P3D}/gaussian_noise must be <= 1, got 5.0"),
+    ("noise", "update_rate", 1e9, f"parameter ~/sensors/{P3D}/update_rate must be <= 1e+06, got 1000000000.0"),
+    ("joint_states", "publish_rate", 2e6,
+     "parameter ~/controllers/joint_state_controller/publish_rate must be <= 1e+06, got 2000000.0"),
+    ("camera", "yaw", 1e4, "parameter ~/camera/yaw must be <= 360, got 10000.0"),
+    ("camera", "pitch", -400.0, "parameter ~/camera/pitch must be >= -360, got -400.0"),
+    ("camera", "distance", 1e30, "parameter ~/camera/distance must be <= 1e+06, got 1e+30"),
+    ("camera", "z_offset", -1e7, "parameter ~/camera/z_offset must be >= -1e+06, got -10000000.0"),
 ])
 def test_absurd_spawn_pose_gains_and_noise_are_refused_naming_the_bound(cube_params, section, key, value, expected):
     where = {"spawn": cube_params["spawn"], "pid": cube_params["controllers"][WHEEL]["pid"],
-             "noise": cube_params["sensors"][P3D]}[section]
+             "noise": cube_params["sensors"][P3D], "joint_states": cube_params["controllers"]["joint_state_controller"],
+             "camera": cube_params.setdefault("camera", {})}[section]
     where[key] = value
     assert config_error(cube_params) == expected
 
@@ -137,8 +146,11 @@ def test_absurd_spawn_pose_gains_and_noise_are_refused_naming_the_bound(cube_par
 def test_values_at_the_bounds_are_taken(cube_params):
     cube_params["spawn"].update(x=1e6, y=-1e6, yaw=2 * math.pi, roll=-2 * math.pi)
     cube_params["controllers"][WHEEL]["pid"].update(p=1e6, i=-1e6, d=1e6)
-    cube_params["sensors"][P3D]["gaussian_noise"] = 1.0
+    cube_params["sensors"][P3D].update(gaussian_noise=1.0, update_rate=1e6)
+    cube_params["controllers"][WHEEL]["pid"]["i_clamp"] = 1e6
+    cube_params["camera"] = {"yaw": -360.0, "pitch": 360.0, "distance": 1e6, "z_offset": -1e6}
     config = parse_robot_config(cube_params)
+    assert config.camera.yaw == -360.0 and config.camera.distance == 1e6 and config.sensors[0].update_rate == 1e6
     assert config.spawn_xyz[:2] == (1e6, -1e6) and config.spawn_rpy[::2] == (-2 * math.pi, 2 * math.pi)
     assert (config.controllers[0].pid.p, config.controllers[0].pid.i) == (1e6, -1e6)
     assert config.sensors[0].gaussian_noise == 1.0

@@ -11,7 +11,16 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 from .sensors import SENSOR_KINDS
-from .validation import MAX_GAIN, MAX_NOISE, MAX_POSITION, MAX_SPAWN_ANGLE, ConfigError, param
+from .validation import (
+    MAX_CAMERA_ANGLE,
+    MAX_GAIN,
+    MAX_NOISE,
+    MAX_POSITION,
+    MAX_RATE,
+    MAX_SPAWN_ANGLE,
+    ConfigError,
+    param,
+)
 
 __all__ = ["ConfigError", "RobotConfig", "parse_robot_config"]
 
@@ -116,7 +125,7 @@ def parse_robot_config(params: Mapping[str, Any], where: str = "~") -> RobotConf
                 raise ConfigError(f"parameter {where}/controllers has two {JOINT_STATE_CONTROLLER}s: "
                                   f"{joint_state_controller} and {name}")
             joint_state_rate = param(entry, "publish_rate", float, c_where + "/", minimum=0.0,
-                                     exclusive_minimum=True)
+                                     exclusive_minimum=True, maximum=MAX_RATE)
             joint_state_controller = name
             continue
         if ctype not in (VELOCITY_CONTROLLER, POSITION_CONTROLLER):
@@ -127,7 +136,7 @@ def parse_robot_config(params: Mapping[str, Any], where: str = "~") -> RobotConf
         gains = PidGains(p=param(pid, "p", float, p_where, minimum=-MAX_GAIN, maximum=MAX_GAIN),
                          i=param(pid, "i", float, p_where, 0.0, minimum=-MAX_GAIN, maximum=MAX_GAIN),
                          d=param(pid, "d", float, p_where, 0.0, minimum=-MAX_GAIN, maximum=MAX_GAIN),
-                         i_clamp=param(pid, "i_clamp", float, p_where, 0.0, minimum=0.0))
+                         i_clamp=param(pid, "i_clamp", float, p_where, 0.0, minimum=0.0, maximum=MAX_GAIN))
         joint = param(entry, "joint", str, c_where + "/")
         controllers.append(JointControllerConfig(name=name, type=ctype, joint=joint, pid=gains))
     if joint_state_rate is None or joint_state_controller is None:
@@ -148,7 +157,8 @@ def parse_robot_config(params: Mapping[str, Any], where: str = "~") -> RobotConf
         sensors.append(SensorConfig(
             name=name, type=stype, link=param(entry, "link", str, s_where + "/"), topic=topic,
             frame_id=param(entry, "frame_id", str, s_where + "/"),
-            update_rate=param(entry, "update_rate", float, s_where + "/", minimum=0.0, exclusive_minimum=True),
+            update_rate=param(entry, "update_rate", float, s_where + "/", minimum=0.0, exclusive_minimum=True,
+                              maximum=MAX_RATE),
             gaussian_noise=param(entry, "gaussian_noise", float, s_where + "/", 0.0, minimum=0.0, maximum=MAX_NOISE)))
     camera = param(params, "camera", dict, top, {})
     c_where, default = f"{where}/camera", CameraConfig()
@@ -158,10 +168,13 @@ def parse_robot_config(params: Mapping[str, Any], where: str = "~") -> RobotConf
         raise ConfigError(f"parameter {c_where} has unknown keys {unknown} (known: {', '.join(known)})")
     camera_config = CameraConfig(
         distance=param(camera, "distance", float, c_where + "/", default.distance, minimum=0.0,
-                       exclusive_minimum=True),
-        yaw=param(camera, "yaw", float, c_where + "/", default.yaw),
-        pitch=param(camera, "pitch", float, c_where + "/", default.pitch),
-        z_offset=param(camera, "z_offset", float, c_where + "/", default.z_offset),
+                       exclusive_minimum=True, maximum=MAX_POSITION),
+        yaw=param(camera, "yaw", float, c_where + "/", default.yaw, minimum=-MAX_CAMERA_ANGLE,
+                  maximum=MAX_CAMERA_ANGLE),
+        pitch=param(camera, "pitch", float, c_where + "/", default.pitch, minimum=-MAX_CAMERA_ANGLE,
+                    maximum=MAX_CAMERA_ANGLE),
+        z_offset=param(camera, "z_offset", float, c_where + "/", default.z_offset, minimum=-MAX_POSITION,
+                       maximum=MAX_POSITION),
         fov=param(camera, "fov", float, c_where + "/", default.fov, minimum=0.0, exclusive_minimum=True))
     if camera_config.fov >= 180.0:
         raise ConfigError(f"parameter {c_where}/fov must be < 180 degrees, got {camera_config.fov!r}")

@@ -26,6 +26,8 @@ MAX_TIME_STEP = 1.0  # s: a physics step longer than this is no simulation; sim 
 MAX_WAIT = 3600.0  # s: the longest timeout a param may give (Python's waits refuse much longer ones)
 MAX_SPAWN_ANGLE = 2 * math.pi  # rad: the spawn's roll, pitch, yaw within a turn either way (90 there: degrees?)
 MAX_GAIN = 1.0e6  # a PID gain p, i or d, either sign: 1e5 x the configs' largest (10); effort is clamped anyway
+MAX_RATE = 1.0e6  # Hz of sim time: a publish_rate or update_rate above one per shortest physics step (1e-6 s)
+MAX_CAMERA_ANGLE = 360.0  # degrees: the camera's yaw and pitch within a turn either way
 MAX_NOISE = 1.0  # a sensor's gaussian_noise (std dev in m, rad, m/s, rad/s, m/s^2): beyond it a reading hides the state
 _WHAT = {float: "float (a finite number)", int: "int", bool: "bool", str: "a non-empty string", dict: "a dictionary"}
 
