@@ -17,6 +17,7 @@ import socket
 import subprocess
 import sys
 import time
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
@@ -44,33 +45,60 @@ def set_pdeathsig(sig: int = signal.SIGTERM) -> None:
     ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, sig)
 
 
-def _prepare_child() -> None:
-    """In a child before exec: SIGTERM when its parent dies, SIGINT's default action (a vector env's worker
-    ignores SIGINT, and an ignored signal stays ignored across exec) and no signal blocked (a Ray worker blocks
-    some, and a blocked signal stays blocked across exec: close()'s SIGINT would wait for its SIGKILL)."""
-    set_pdeathsig()
+def default_sigint() -> None:
+    """In a child before exec (preexec_fn): SIGINT's default action and no signal blocked, so that the SIGINT
+    stop_process sends ends it. An ignored signal stays ignored across exec, a blocked one stays blocked: a
+    vector env's worker ignores SIGINT, a Ray worker blocks some signals, and bash starts a background job of a
+    non-interactive shell (`./ws test ... &` in a script) with SIGINT ignored; a rosmaster started from any of
+    them ignored SIGINT until stop_process's SIGKILL, `timeout` s later."""
     signal.signal(signal.SIGINT, signal.SIG_DFL)
     signal.pthread_sigmask(signal.SIG_SETMASK, set())
 
 
+def _prepare_child() -> None:
+    """In a child before exec: SIGTERM when its parent dies, and default_sigint()."""
+    set_pdeathsig()
+    default_sigint()
+
+
+def _sigint_refused(pid: int) -> str:
+    """" (it ignores SIGINT)" or " (it blocks SIGINT)" when /proc says so of `pid`, else ""."""
+    bit = 1 << (signal.SIGINT - 1)
+    try:
+        status = dict(line.split(":", 1) for line in Path(f"/proc/{pid}/status").read_text().splitlines())
+        return next((f" (it {verb} SIGINT)" for field, verb in (("SigIgn", "ignores"), ("SigBlk", "blocks"))
+                     if int(status[field], 16) & bit), "")
+    except (OSError, KeyError, ValueError):
+        return ""
+
+
 def stop_process(process: subprocess.Popen[Any], timeout: float = STOP_TIMEOUT, group: bool = False) -> None:
     """SIGINT (ROS nodes, roslaunch and rosmaster shut down cleanly), then SIGKILL; bounded. With `group`, to
-    the process group the process leads (started with start_new_session: roslaunch and the nodes it started)."""
+    the process group the process leads (started with start_new_session: roslaunch and the nodes it started).
+    A process still running `timeout` s after SIGINT is a fault (start it with default_sigint): it is killed,
+    then a RuntimeWarning names it and, if it ignored or blocked SIGINT, says so."""
+    refused: str | None = None  # set when SIGINT did not end it: why, if /proc says
     for sig in (signal.SIGINT, signal.SIGKILL):
         if process.poll() is not None:
-            return
+            break
         try:
             if group:
                 os.killpg(process.pid, sig)
             else:
                 process.send_signal(sig)
         except ProcessLookupError:
-            return
+            break
         try:
             process.wait(timeout)
-            return
+            break
         except subprocess.TimeoutExpired:
-            continue
+            if sig == signal.SIGINT:
+                refused = _sigint_refused(process.pid)
+    if refused is not None:
+        command = " ".join(map(str, process.args)) if isinstance(process.args, list) else str(process.args)
+        end = "killed" if process.poll() is not None else f"still running {timeout} s after SIGKILL"
+        warnings.warn(f"{'process group' if group else 'process'} {process.pid} ({command[:120]}) was still "
+                      f"running {timeout} s after SIGINT{refused}: {end}", RuntimeWarning, stacklevel=2)
 
 
 def _tail(path: Path, lines: int = 15) -> str:

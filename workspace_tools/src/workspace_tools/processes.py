@@ -14,7 +14,7 @@ from typing import TypeVar
 
 import rosgraph
 
-from robot_rl.private_sim import free_port, stop_process
+from robot_rl.private_sim import default_sigint, free_port, stop_process
 from workspace_tools.launch_reaper import processes_with
 
 T = TypeVar("T")
@@ -26,7 +26,8 @@ def processes_using(uri: str) -> list[int]:
 
 
 def stop(process: subprocess.Popen, timeout: float = 10.0) -> None:
-    """End a process group we started: SIGINT (roslaunch shuts its nodes down), then SIGKILL."""
+    """End a process group we started: SIGINT (roslaunch shuts its nodes down), then SIGKILL after `timeout` s,
+    with a RuntimeWarning naming it."""
     stop_process(process, timeout, group=True)
 
 
@@ -39,7 +40,10 @@ class Processes:
         self._processes: list[subprocess.Popen] = []
 
     def start(self, command: list[str], **kwargs) -> subprocess.Popen:
-        process = subprocess.Popen(command, env=self.env, cwd=self.cwd, start_new_session=True, **kwargs)
+        """Start `command` in a process group of its own, with SIGINT's default action whatever this process
+        has (pytest started as a background job ignores SIGINT): close()'s SIGINT ends it."""
+        process = subprocess.Popen(command, env=self.env, cwd=self.cwd, start_new_session=True,
+                                   preexec_fn=default_sigint, **kwargs)
         self._processes.append(process)
         return process
 

@@ -44,7 +44,6 @@ import math
 import os
 import platform
 import shutil
-import signal
 import subprocess
 import sys
 import tempfile
@@ -59,7 +58,7 @@ import yaml
 from robot_rl.atomic import write_json_atomic, write_text_atomic
 from robot_rl.cluster import ClusterError
 from robot_rl.ledger import format_duration
-from robot_rl.private_sim import free_port, set_pdeathsig, stop_process
+from robot_rl.private_sim import default_sigint, free_port, set_pdeathsig, stop_process
 from robot_rl.results import RunDirectory
 from workspace_tools import sweep_spec
 from workspace_tools.processes import launch_args
@@ -125,8 +124,7 @@ def _prepare_child() -> None:
     SIGINT as a terminal gives it: Tune's trial thread blocks SIGINT, and a child inherits the mask (then
     roslaunch's SIGINT to its master waits 15 s before SIGTERM)."""
     set_pdeathsig()
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-    signal.pthread_sigmask(signal.SIG_SETMASK, set())
+    default_sigint()
 
 
 def _train(job: TrialJob) -> None:
