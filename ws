@@ -42,11 +42,12 @@ APT_PACKAGES=(
   python3-geometry-msgs ros-geometry-msgs python3-sensor-msgs ros-sensor-msgs
   python3-nav-msgs ros-nav-msgs python3-rosgraph-msgs ros-rosgraph-msgs
   python3-tf2-msgs ros-tf2-msgs tf-tools librostest-dev libsensor-msgs-dev libnav-msgs-dev
+  python3-visualization-msgs ros-visualization-msgs
 )
 
 # Installed only when asked for: rviz (./ws rviz, ./ws run ... rviz:=true, ./ws test), Tk for the reward
 # plot's window (./ws plot, ./ws test) and, for the tests that need a display, Xvfb.
-RVIZ_APT_PACKAGES=(rviz python3-visualization-msgs ros-visualization-msgs)
+RVIZ_APT_PACKAGES=(rviz)
 PLOT_APT_PACKAGES=(python3-tk)
 TEST_APT_PACKAGES=(xvfb)
 
