@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Each contact sensor's force as an rviz arrow (see pybullet_sim.contact_markers)."""
+import signal
 import sys
 
-from pybullet_sim.contact_markers import main
-
 if __name__ == "__main__":
+    signal.signal(signal.SIGINT, signal.SIG_DFL)  # quietly while it imports, as sim_node.py
+    from pybullet_sim.contact_markers import main
     sys.exit(main())
