@@ -21,6 +21,7 @@ import yaml
 
 from hopper_training.monoped_env import STAY_UP
 from moving_cube_training.one_disk_walk import MOVING_CUBE, ONE_DISK_WALK
+from workspace_tools.launch_reaper import descendants
 from workspace_tools.paths import PROGRAMS, REPO
 from workspace_tools.processes import Processes, RosMaster, free_port, processes_using, wait_for
 from workspace_tools.training_launch import write_cube_training_launch
@@ -709,24 +710,6 @@ def test_sigkill_of_the_launcher_leaves_no_process_of_the_run(tmp_path):
         runner.close()
         for pid in processes_using(uri):  # what the launch left running, had the test failed
             os.kill(pid, signal.SIGKILL)
-
-
-def descendants(pid: int) -> list[int]:
-    """Every process under `pid` (from /proc's parent pids)."""
-    children: dict[int, list[int]] = {}
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                parent = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
-            except (OSError, IndexError, ValueError):
-                continue
-            children.setdefault(parent, []).append(int(entry.name))
-    found, todo = [], [pid]
-    while todo:
-        below = children.get(todo.pop(), [])
-        found.extend(below)
-        todo.extend(below)
-    return found
 
 
 def worker_sims(trainer: int) -> list[int]:

@@ -17,6 +17,7 @@ import yaml
 
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
 from robot_rl.vector import WorkerError, make_vector_env
+from workspace_tools.launch_reaper import descendants
 from workspace_tools.paths import PROGRAMS, REPO
 from workspace_tools.processes import Processes, RosMaster, launch_args
 
@@ -190,24 +191,6 @@ def test_a_short_dqn_run_over_ros_writes_every_results_file_and_resumes(tmp_path
     assert evaluation.returncode == 0, evaluation.stderr
     report = json.loads(evaluation.stdout.strip().splitlines()[-1])
     assert report["task"] == "MovingCubeOneDiskWalk-v0" and report["episodes"] == 2
-
-
-def descendants(pid):
-    """Every process below `pid` (from /proc's parent links)."""
-    children = {}
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                parent = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
-            except (OSError, IndexError):
-                continue
-            children.setdefault(parent, []).append(int(entry.name))
-    found, todo = [], [pid]
-    while todo:
-        for child in children.get(todo.pop(), []):
-            found.append(child)
-            todo.append(child)
-    return found
 
 
 def test_ctrl_c_on_a_training_from_two_envs_ends_every_process_and_saves_the_run(tmp_path):

@@ -190,26 +190,16 @@ def _tree_cpu_s(cluster_mark: str = "") -> float:
     """CPU seconds used so far by this process and every process below it (workers, masters, sim nodes), and by
     every process of the LoopbackCluster whose mark is `cluster_mark` (its daemons, actors, their masters and sim
     nodes)."""
-    parents: dict[int, list[int]] = {}
-    stats: dict[int, list[str]] = {}
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                fields = _stat_fields(entry.name)
-            except OSError:  # gone
-                continue
-            stats[int(entry.name)] = fields
-            parents.setdefault(int(fields[1]), []).append(int(entry.name))
-    counted, todo = set(), [os.getpid()]
-    while todo:
-        pid = todo.pop()
-        counted.add(pid)
-        todo.extend(parents.get(pid, []))
-    if cluster_mark:
-        from workspace_tools.launch_reaper import processes_with
-        from workspace_tools.ray_cluster import MARK_VARIABLE
-        counted.update(processes_with(MARK_VARIABLE, cluster_mark))
-    return sum(_cpu_s(stats[pid]) for pid in counted if pid in stats)
+    from workspace_tools.launch_reaper import descendants, processes_with
+    from workspace_tools.ray_cluster import MARK_VARIABLE
+    cluster = processes_with(MARK_VARIABLE, cluster_mark) if cluster_mark else []
+    total = 0.0
+    for pid in {os.getpid(), *descendants(os.getpid()), *cluster}:
+        try:
+            total += _cpu_s(_stat_fields(pid))
+        except OSError:  # gone
+            continue
+    return total
 
 
 def worker_vector(robot: str, backend: str, n: int, steps: int, running_step: float, cluster: str = "",

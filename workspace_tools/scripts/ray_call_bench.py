@@ -65,24 +65,6 @@ def _pipe_echo(conn: Any) -> None:
         conn.send(echo.step(action))
 
 
-def _descendants(pid: int) -> list[int]:
-    """Pids of every live descendant of `pid` (from /proc's parent links)."""
-    children: dict[int, list[int]] = {}
-    for entry in os.scandir("/proc"):
-        if entry.name.isdigit():
-            try:
-                parent = int(Path(entry.path, "stat").read_text().rsplit(")", 1)[1].split()[1])
-            except (OSError, IndexError, ValueError):  # gone
-                continue
-            children.setdefault(parent, []).append(int(entry.name))
-    found, todo = [], [pid]
-    while todo:
-        below = children.get(todo.pop(), [])
-        found.extend(below)
-        todo.extend(below)
-    return found
-
-
 def _thread_cpu_ns(pids: list[int]) -> dict[tuple[int, str], int]:
     """CPU time spent so far by each thread of `pids` (ns, /proc/PID/task/TID/schedstat's first field), keyed by
     its pid and its tid and name."""
@@ -131,7 +113,8 @@ class CpuMeter:
         self.start_ns = 0
 
     def start(self) -> None:
-        self.pids = sorted({os.getpid(), *_descendants(os.getpid()), *self.extra()})
+        from workspace_tools.launch_reaper import descendants
+        self.pids = sorted({os.getpid(), *descendants(os.getpid()), *self.extra()})
         self.start_ns = _cpu_ns(self.pids)
 
     def per(self, operations: int) -> float:

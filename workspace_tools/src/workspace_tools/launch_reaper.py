@@ -39,6 +39,24 @@ def processes_with(variable: str, value: str) -> list[int]:
     return pids
 
 
+def descendants(pid: int) -> list[int]:
+    """Pids of every live process below `pid` (from /proc's parent links)."""
+    children: dict[int, list[int]] = {}
+    for entry in os.scandir("/proc"):
+        if entry.name.isdigit():
+            try:
+                parent = int(Path(entry.path, "stat").read_text().rsplit(")", 1)[1].split()[1])
+            except (OSError, IndexError, ValueError):  # gone
+                continue
+            children.setdefault(parent, []).append(int(entry.name))
+    found, todo = [], [pid]
+    while todo:
+        below = children.get(todo.pop(), [])
+        found.extend(below)
+        todo.extend(below)
+    return found
+
+
 def _signal_all(pids: list[int], signum: int) -> None:
     for pid in pids:
         try:
