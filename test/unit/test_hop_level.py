@@ -2,6 +2,7 @@
 ends at the next decision point (lift-off), the actions' offsets and thrusts, the state key's bins, the
 truncation at the horizon, gymnasium's env checker; and the controller's hooks for it."""
 import dataclasses
+import json
 import math
 
 import gymnasium
@@ -9,6 +10,7 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
+from hopper_training import TASKS
 from hopper_training.controller import HopController, HopGains, HopInput, Phase
 from hopper_training.hop_level import (
     HOP_LEVEL,
@@ -20,6 +22,7 @@ from hopper_training.hop_level import (
     offsets,
     thrust_knees,
 )
+from robot_rl import evaluation
 from robot_rl.params import ParamError
 from robot_rl.task import make_env
 
@@ -161,3 +164,32 @@ def test_the_controllers_hooks_leave_it_unchanged_by_default_and_take_the_feedba
     assert hips(HopGains(speed_feedback=False, neutral_point=False),
                 (0.3 * gains.stance_time / 2.0 + gains.placement_kv * 0.3, 0.0)) == pytest.approx(default)
     assert dataclasses.replace(gains).speed_feedback and gains.neutral_point
+
+
+# -- evaluate.py --policy constant: one action every hop, the trivial baselines ------------------------------
+def evaluate_json(capsys, *argv: str) -> dict:
+    assert evaluation.main(list(argv), TASKS, "evaluate_monoped") == 0
+    return json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+
+
+def test_evaluate_plays_one_constant_action_every_hop(capsys):
+    report = evaluate_json(capsys, "--policy", "constant", "--action", "2", "--task", "hop_in_place",
+                           "--episodes", "1", "--horizon-s", "2")
+    assert report["policy"] == "constant" and report["action"] == 2 and report["task"] == HOP_LEVEL.env_id
+    assert report["constant"]["mean_hops"] >= 5 and report["constant"]["upright_whole_horizon_rate"] == 1.0
+    assert action_meaning(PARAMS, 2) == pytest.approx((0.02, 0.0)), "action 2: the foot 2 cm ahead"
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--policy", "constant", "--task", "hop_in_place"], "--action N is needed for --policy constant, and only for it"),
+    (["--qtable", "some_run", "--action", "1"], "--action N is needed for --policy constant, and only for it"),
+    (["--policy", "constant", "--action", "6", "--task", "hop_in_place"],
+     "--action must be from 0 to 5 (MonopedHopLevel-v0's Discrete(6)), got 6"),
+    (["--policy", "constant", "--action", "0", "--task", "residual_forward"],
+     "--policy constant needs Discrete actions; MonopedResidualForward-v0's are Box("),
+])
+def test_evaluate_refuses_a_constant_action_the_task_cannot_take_in_one_line(capsys, argv, message):
+    with pytest.raises(SystemExit) as exit_info:
+        evaluation.main([*argv, "--episodes", "1"], TASKS, "evaluate_monoped")
+    assert exit_info.value.code == 2
+    assert message in capsys.readouterr().err

@@ -66,6 +66,7 @@ from gymnasium import spaces
 from robot_rl.backends import Readings
 from robot_rl.discretiser import Discretiser
 from robot_rl.env_base import StepOutcome
+from robot_rl.evaluation import ConstantAction
 from robot_rl.params import ParamError, param
 from robot_rl.task import Episode, MetricValue, StateKey, TaskSpec
 
@@ -329,16 +330,6 @@ class MonopedHopLevelEnv(HopCycleEnv):
         if self.fell:
             return {"fall": p.done_reward}, True, info
         return {"alive": p.alive_reward * self.hop_time, "speed": -p.speed_weight * float(observation[2])}, False, info
-
-
-class ConstantAction:
-    """A policy that always takes one action (evaluate.py --policy do_nothing and, on this task, controller)."""
-
-    def __init__(self, action: int):
-        self.action = action
-
-    def __call__(self, observation: np.ndarray) -> int:
-        return self.action
 
 
 def do_nothing_policy(env: Any, speed: float) -> ConstantAction:

@@ -3,6 +3,7 @@
   evaluate.py --qtable RUN [--episodes N] [--horizon-s S] [--backend direct|ros] [--seed S]
               [--initial-tilt LOW HIGH] [--video PATH.mp4 [--video-episodes N] [--video-size WxH]]
   evaluate.py --policy NAME [--task TASK] [--speed M_S] [the options above but --qtable and --video]
+  evaluate.py --policy constant --action N [--task TASK] [the same options]
 
 RUN (also --run) is a run folder (training_results/<task>/<run>, or its `latest` link) or its checkpoint:
 qtable.json of tabular Q-learning, or agent.json of a deep agent (its greedy policy is the SB3 model's
@@ -19,6 +20,8 @@ is [LOW, HIGH], or null for a task without it.
 `--policy NAME` evaluates instead a hand-written policy that the robot's package offers (the monoped's
 `controller`, hopper_training.controller_policy), commanded `--speed` m/s along +x, on `--task`'s default
 params as that policy needs them; its JSON has "policy": NAME and NAME: {...} with the keys of "greedy".
+`--policy constant --action N`, on every robot, takes action N every step (a task with Discrete actions):
+the trivial baselines a learned policy must beat besides random ones; its JSON adds "action": N.
 `--video` records the first `--video-episodes` (3) greedy episodes to an mp4 (robot_rl.video: real
 time, at most 30 frames/s, from the sim's camera that follows the robot) and adds "video": {"path",
 "episodes", "frames", "fps"} to the JSON; recording changes none of the numbers.
@@ -96,6 +99,32 @@ class ScriptedPolicy:
 
     env_params: Callable[[TaskSpec[Any], Any], Any]
     build: Callable[[Any, float], Callable[[np.ndarray], Any]]
+
+
+class ConstantAction:
+    """A policy that always takes one action: the trivial baselines (`--policy constant --action N`, and a robot
+    package's do-nothing action)."""
+
+    def __init__(self, action: int):
+        self.action = action
+
+    def __call__(self, observation: np.ndarray) -> int:
+        return self.action
+
+
+def constant_policy(action: int) -> ScriptedPolicy:
+    """`--policy constant --action N`: action N every step, on any task with Discrete actions."""
+    def build(env: Any, speed: float) -> ConstantAction:
+        space = env.action_space
+        if not isinstance(space, gymnasium.spaces.Discrete):
+            raise ValueError(f"--policy constant needs Discrete actions; {env.unwrapped.task.env_id}'s are {space}")
+        if not 0 <= action < int(space.n):
+            raise ValueError(f"--action must be from 0 to {int(space.n) - 1} ({env.unwrapped.task.env_id}'s "
+                             f"Discrete({int(space.n)})), got {action}")
+        if speed != 0.0:
+            raise ValueError(f"--policy constant takes no --speed, got {speed}")
+        return ConstantAction(action)
+    return ScriptedPolicy(lambda task, params: params, build)
 
 
 def run_episodes(env: Any, policy: Callable[[np.ndarray], Any], episodes: int, task: TaskSpec[Any],
@@ -195,8 +224,9 @@ def video_size(text: str) -> tuple[int, int]:
 
 def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
          policies: Mapping[str, ScriptedPolicy] | None = None) -> int:
-    """evaluate.py of a robot package: its `tasks`, and the hand-written `policies` it offers (--policy)."""
-    policies = policies or {}
+    """evaluate.py of a robot package: its `tasks`, the hand-written `policies` it offers, and `constant`, action
+    --action N every step (--policy)."""
+    policies = {**(policies or {}), "constant": constant_policy(0)}
     parser = argparse.ArgumentParser(prog="evaluate.py", description=__doc__.splitlines()[0])
     parser.add_argument("--qtable", "--run", dest="run", type=Path,
                         help="a run folder, or its qtable.json or agent.json (the greedy policy)")
@@ -206,6 +236,8 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
                         help=f"--policy other than greedy: the task (default {tasks[0].name})")
     parser.add_argument("--speed", type=float, default=0.0,
                         help="--policy other than greedy: its commanded speed along +x, m/s (default 0)")
+    parser.add_argument("--action", type=int,
+                        help="--policy constant: the action taken every step (a Discrete action's index)")
     parser.add_argument("--episodes", type=int, default=20, help="episodes per policy (default 20)")
     parser.add_argument("--horizon-s", type=float, help="sim seconds per episode at most (default: the task's)")
     parser.add_argument("--backend", choices=("direct", "ros"), default="direct",
@@ -233,10 +265,13 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
         if not 1 <= args.video_episodes <= args.episodes:
             parser.error(f"--video-episodes must be from 1 to --episodes ({args.episodes}), got {args.video_episodes}")
         video = VideoRequest(args.video, args.video_episodes, *args.video_size)
+    if (args.action is None) == (args.policy == "constant"):
+        parser.error("--action N is needed for --policy constant, and only for it")
     if args.policy != "greedy":
         if video is not None:
             parser.error("--video records the greedy policy only")
-        return _main_scripted(parser, args, find_task(list(tasks), args.task), policies[args.policy], node_name)
+        scripted = constant_policy(args.action) if args.policy == "constant" else policies[args.policy]
+        return _main_scripted(parser, args, find_task(list(tasks), args.task), scripted, node_name)
     try:
         run = TrainedRun(args.run, tasks)
     except (OSError, ParamError, ValueError) as error:
@@ -288,5 +323,9 @@ def _main_scripted(parser: argparse.ArgumentParser, args: argparse.Namespace, ta
                                    args.seed, args.speed)
     except (SimConnectionError, SimStateError) as error:
         parser.exit(1, f"evaluate.py: {error}\n")
+    except ValueError as error:  # a policy that cannot act in the task (constant's --action, a --speed refused)
+        parser.exit(2, f"evaluate.py: {error}\n")
+    if args.policy == "constant":
+        report["action"] = args.action
     print(json.dumps(report))
     return 0
