@@ -98,7 +98,10 @@ def _per_thread(call: Any, calls: int, meter: CpuMeter) -> list[tuple[float, str
         call(i)
     spent: dict[tuple[str, str], float] = {}
     for (pid, thread), ns in _thread_cpu_ns(meter.pids).items():
-        process = "this driver" if pid == os.getpid() else Path(f"/proc/{pid}/comm").read_text().strip()
+        try:
+            process = "this driver" if pid == os.getpid() else Path(f"/proc/{pid}/comm").read_text().strip()
+        except OSError:  # gone since
+            process = f"pid {pid}"
         key = (process, thread.split(" ", 1)[1])
         spent[key] = spent.get(key, 0.0) + (ns - before.get((pid, thread), 0)) / calls / 1e3
     return sorted(((us, *key) for key, us in spent.items() if us >= 5), reverse=True)
