@@ -226,12 +226,13 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
          policies: Mapping[str, ScriptedPolicy] | None = None) -> int:
     """evaluate.py of a robot package: its `tasks`, the hand-written `policies` it offers, and `constant`, action
     --action N every step (--policy)."""
-    policies = {**(policies or {}), "constant": constant_policy(0)}
+    policies = policies or {}
     parser = argparse.ArgumentParser(prog="evaluate.py", description=__doc__.splitlines()[0])
     parser.add_argument("--qtable", "--run", dest="run", type=Path,
                         help="a run folder, or its qtable.json or agent.json (the greedy policy)")
-    parser.add_argument("--policy", choices=("greedy", *policies), default="greedy",
-                        help="greedy: the trained run's (default); or a hand-written policy of the robot's package")
+    parser.add_argument("--policy", choices=("greedy", *policies, "constant"), default="greedy",
+                        help="greedy: the trained run's (default); a hand-written policy of the robot's package; or "
+                             "constant (--action N every step)")
     parser.add_argument("--task", choices=[task.name for task in tasks], default=tasks[0].name,
                         help=f"--policy other than greedy: the task (default {tasks[0].name})")
     parser.add_argument("--speed", type=float, default=0.0,
