@@ -55,8 +55,8 @@ def default_sigint() -> None:
     signal.pthread_sigmask(signal.SIG_SETMASK, set())
 
 
-def _prepare_child() -> None:
-    """In a child before exec: SIGTERM when its parent dies, and default_sigint()."""
+def prepare_child() -> None:
+    """In a child before exec (preexec_fn): SIGTERM when its parent dies, and default_sigint()."""
     set_pdeathsig()
     default_sigint()
 
@@ -145,7 +145,7 @@ class PrivateSim:
         log = open(self.log_dir / f"{name}.log", "wb")
         self._logs.append(log)
         process = subprocess.Popen(command, env=self.env, stdin=subprocess.DEVNULL, stdout=log,
-                                   stderr=subprocess.STDOUT, preexec_fn=_prepare_child)
+                                   stderr=subprocess.STDOUT, preexec_fn=prepare_child)
         self.processes.append(process)
         return process
 

@@ -58,7 +58,7 @@ import yaml
 from robot_rl.atomic import write_json_atomic, write_text_atomic
 from robot_rl.cluster import ClusterError
 from robot_rl.ledger import format_duration
-from robot_rl.private_sim import default_sigint, free_port, set_pdeathsig, stop_process
+from robot_rl.private_sim import free_port, prepare_child, stop_process
 from robot_rl.results import RunDirectory
 from workspace_tools import sweep_spec
 from workspace_tools.processes import launch_args
@@ -119,14 +119,6 @@ def trial_done(job: TrialJob) -> bool:
     return bool(summary and summary.get("completed")) and (job.run_dir / "evaluation.json").is_file()
 
 
-def _prepare_child() -> None:
-    """The training's launcher gets SIGTERM if the trial's process dies (its launch reaper ends the rest), and
-    SIGINT as a terminal gives it: Tune's trial thread blocks SIGINT, and a child inherits the mask (then
-    roslaunch's SIGINT to its master waits 15 s before SIGTERM)."""
-    set_pdeathsig()
-    default_sigint()
-
-
 def _train(job: TrialJob) -> None:
     """Train the trial's run to its end: anew, or on from its checkpoint (as ./ws run ... resume:=true)."""
     run = job.run_dir
@@ -148,8 +140,11 @@ def _train(job: TrialJob) -> None:
     with open(log_path, "ab") as log:
         log.write(f"\n=== {datetime.datetime.now(datetime.UTC).isoformat()} {' '.join(command)}\n".encode())
         log.flush()
+        # prepare_child: the launcher gets SIGTERM if this trial's process dies (its launch reaper ends the rest),
+        # and SIGINT as a terminal gives it (Tune's trial thread blocks SIGINT, and a child inherits the mask:
+        # roslaunch's SIGINT to its master would then wait 15 s before SIGTERM)
         process = subprocess.Popen(command, env=env, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
-                                   preexec_fn=_prepare_child)
+                                   preexec_fn=prepare_child)
     try:
         code = process.wait(TRIAL_TIMEOUT_S)
     except subprocess.TimeoutExpired:
