@@ -57,7 +57,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium
 import numpy as np
@@ -66,7 +66,6 @@ from gymnasium import spaces
 from robot_rl.backends import Readings
 from robot_rl.discretiser import Discretiser
 from robot_rl.env_base import StepOutcome
-from robot_rl.evaluation import ConstantAction
 from robot_rl.params import ParamError, param
 from robot_rl.task import Episode, MetricValue, StateKey, TaskSpec
 
@@ -83,6 +82,9 @@ from .monoped_env import (
     monoped_metrics,
 )
 from .params import MonopedParams
+
+if TYPE_CHECKING:
+    from robot_rl.evaluation import ConstantAction
 
 SPEED_EDGES = [0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5]  # m/s
 LEAN_EDGES = [0.0]                          # the sign of the lean towards the velocity
@@ -334,6 +336,7 @@ class MonopedHopLevelEnv(HopCycleEnv):
 
 def do_nothing_policy(env: Any, speed: float) -> ConstantAction:
     """evaluate.py --policy do_nothing: the do-nothing action every hop (offset 0, the default thrust)."""
+    from robot_rl.evaluation import ConstantAction  # evaluate.py's, not the env's: kept out of the task's imports
     params = env.unwrapped.params
     if not isinstance(params, HopLevelParams):
         raise ValueError(f"--policy do_nothing is for --task {HOP_LEVEL.name}")
