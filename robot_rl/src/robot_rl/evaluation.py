@@ -159,6 +159,12 @@ def random_actions(space: Any, rng: np.random.Generator) -> Callable[[np.ndarray
     return lambda _: rng.uniform(space.low, space.high).astype(space.dtype)
 
 
+def default_initial_tilt(params: Any) -> tuple[float, float] | None:
+    """How evaluate.py starts episodes by default: leaning EVAL_INITIAL_TILT where the task can (its params
+    have initial_tilt), whatever the run trained from; None where it cannot."""
+    return EVAL_INITIAL_TILT if hasattr(params, "initial_tilt") else None
+
+
 def with_initial_tilt(params: Any, tilt: tuple[float, float] | None, source: str) -> Any:
     """`params` with initial_tilt set to `tilt` (LOW, HIGH), if the task has one; None leaves them as they are."""
     if tilt is None:
@@ -287,11 +293,11 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
         except SimConnectionError as error:
             parser.exit(1, f"evaluate.py: {error}\n")
     horizon_s = args.horizon_s if args.horizon_s is not None else run.task.eval_horizon_s
-    tilted = hasattr(run.params, "initial_tilt")
-    if args.initial_tilt is not None and not tilted:
-        parser.exit(2, f"evaluate.py: --initial-tilt: the task {run.task.env_id} has no initial tilt\n")
-    initial_tilt = ((args.initial_tilt[0], args.initial_tilt[1]) if args.initial_tilt is not None
-                    else EVAL_INITIAL_TILT) if tilted else None
+    initial_tilt = default_initial_tilt(run.params)
+    if args.initial_tilt is not None:
+        if initial_tilt is None:
+            parser.exit(2, f"evaluate.py: --initial-tilt: the task {run.task.env_id} has no initial tilt\n")
+        initial_tilt = (args.initial_tilt[0], args.initial_tilt[1])
     try:
         with_initial_tilt(run.params, initial_tilt, "--initial-tilt")
     except ParamError as error:

@@ -10,8 +10,8 @@ main.launch, on a ROS master of its own on a free loopback port, video:=false) w
 task's YAML with the trial's seed and parameters (and, for a deep agent, an agent_config:= that is the
 agent's default file for the task with the trial's agent parameters), then evaluates the trained run in-process with
 evaluate.py's code (robot_rl.evaluation: greedy and random, eval_episodes each, direct backend,
-evaluation seed eval_seed) into evaluation.json. Everything goes to the sweep's folder
-DIR/<results name>/<SWEEP>/ (SWEEP: name:=, else the UTC time):
+evaluation seed eval_seed, evaluate.py's default initial tilt) into evaluation.json. Everything goes to the
+sweep's folder DIR/<results name>/<SWEEP>/ (SWEEP: name:=, else the UTC time):
 
   sweep.yaml            the arguments that define the trials, and the trials
   configs/<trial>.yaml  each trial's config (configs/<trial>.agent.yaml: a deep agent's)
@@ -163,11 +163,11 @@ def _evaluate(job: TrialJob) -> dict[str, Any]:
     existing = _read_json(path)
     if existing is not None:
         return existing
-    from robot_rl.evaluation import TrainedRun, evaluate
+    from robot_rl.evaluation import TrainedRun, default_initial_tilt, evaluate
     tasks = importlib.import_module(job.package).TASKS
     run = TrainedRun(job.run_dir, tasks)
     report = evaluate(run, episodes=job.eval_episodes, horizon_s=run.task.eval_horizon_s, backend="direct",
-                      seed=job.eval_seed)
+                      seed=job.eval_seed, initial_tilt=default_initial_tilt(run.params))
     write_json_atomic(path, report)
     return report
 
