@@ -97,12 +97,13 @@ def test_episode_schedule_falls_over_its_share_of_the_episodes():
     assert values == pytest.approx([1.0, 0.55, 0.1, 0.1])
 
 
-def train(tmp_path, agent, envs, resume=False, nepisodes=6, max_steps=None, log=None):
+def train(tmp_path, agent, envs, resume=False, nepisodes=6, max_steps=None, log=None, trainers=None, **agent_changes):
     params = cube_params(nepisodes=nepisodes)
     run = RunDirectory.latest(tmp_path, "moving_cube-" + agent, DEEP_CHECKPOINT) if resume else \
         RunDirectory.create(tmp_path, "moving_cube-" + agent, params.to_mapping(), ONE_DISK_WALK.metric_names,
                             checkpoint_name=DEEP_CHECKPOINT)
     changes = {"learning_starts": 10} if agent == "dqn" else {"n_steps": 16, "batch_size": 16}
+    changes |= agent_changes
     agent_params = find_agent(agent).load_params().with_changes("test", **changes)
     env = make_vec_env(ONE_DISK_WALK, envs, "direct", params.seed, params) if envs > 1 else \
         make_env(ONE_DISK_WALK, params=params, backend="direct", seed=params.seed)
@@ -110,6 +111,8 @@ def train(tmp_path, agent, envs, resume=False, nepisodes=6, max_steps=None, log=
     trainer = DeepTrainer(env, ONE_DISK_WALK, params, find_agent(agent), agent_params, run,
                           TrainingHooks(log=lines.append, checkpoint_every=2), resume=resume, max_steps=max_steps,
                           agent_config=find_agent(agent).config_for(ONE_DISK_WALK))
+    if trainers is not None:
+        trainers.append(trainer)
     try:
         return run, trainer.train()
     finally:
@@ -164,6 +167,31 @@ def test_resume_refuses_another_agents_checkpoint(tmp_path):
     with pytest.raises(ValueError, match="agent.json: not a usable checkpoint: it is of agent 'ppo', this run "
                                          "trains 'dqn'"):
         train(tmp_path, "dqn", 1, resume=True, nepisodes=4)
+
+
+def test_reward_scale_scales_what_the_agent_learns_from_not_the_run_s_returns(tmp_path):
+    """Before learning_starts DQN acts at random from its seed: both runs see the same episodes."""
+    returns, trainers = [], []
+    for scale in (1.0, 0.001):
+        run, _ = train(tmp_path / str(scale), "dqn", 1, nepisodes=3, trainers=trainers, reward_scale=scale,
+                       learning_starts=1000)
+        returns.append([r.return_ for r in run.read_episodes()])
+    assert returns[1] == pytest.approx(returns[0], rel=1e-5) and any(abs(r) > 1 for r in returns[0])
+    buffers = [t.model.replay_buffer for t in trainers]
+    stored = [b.rewards[:b.pos].ravel() for b in buffers]
+    np.testing.assert_allclose(stored[1], stored[0] * 0.001, rtol=1e-5)
+
+
+def test_a_checkpoint_from_before_reward_scale_resumes_and_another_scale_is_refused(tmp_path):
+    run, _ = train(tmp_path, "dqn", 1, nepisodes=2)
+    agent_json = run.path / "agent.json"
+    checkpoint = json.loads(agent_json.read_text())
+    del checkpoint["agent_params"]["reward_scale"]
+    agent_json.write_text(json.dumps(checkpoint))
+    with pytest.raises(ValueError, match="agent.json: not a usable checkpoint: its agent params differ"):
+        train(tmp_path, "dqn", 1, resume=True, nepisodes=4, reward_scale=0.5)
+    _, summary = train(tmp_path, "dqn", 1, resume=True, nepisodes=4)
+    assert summary["completed"] and [r.episode for r in run.read_episodes()] == [1, 2, 3, 4]
 
 
 def test_a_step_budget_ends_training_and_drives_dqn_exploration(tmp_path):

@@ -9,7 +9,8 @@ is asked for. Agents run on the CPU with one torch thread (the envs' workers nee
   `seed(s)` gives worker i the i-th seed numpy's SeedSequence(s) derives, as the gymnasium face does.
 - `DqnParams`, `PpoParams`, `SacParams`: each agent's params (robot_rl/config/<agent>.yaml) and its SB3
   algorithm. DQN needs a task with Discrete actions, SAC one with Box actions, PPO takes either; an action
-  travels to the env as the space holds it (an int, or a float32 array).
+  travels to the env as the space holds it (an int, or a float32 array). `reward_scale` (every agent's)
+  multiplies the rewards the agent learns from (`ScaledRewards`); the run's returns stay the task's.
 - `DeepTrainer`: trains until `nepisodes` episodes have ended (or `max_steps` env steps: then DQN's
   exploration falls over a share of those steps, SB3's way; without it over a share of the episodes,
   like tabular Q-learning's epsilon, by `EpisodeSchedule`); its RunLedger writes the run as tabular
@@ -45,7 +46,8 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
-from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecEnvWrapper
+from stable_baselines3.common.vec_env.base_vec_env import VecEnvObs, VecEnvStepReturn
 
 from .ledger import DEFAULT_HOOKS, Learner, RunLedger, TrainingHooks, TrainingState, format_duration, restored_state
 from .params import MAX_COUNT, ParamError, Params, TaskParams, param
@@ -95,6 +97,9 @@ class NetworkParams(Params):
     hidden_layers: int = param(low=1, high=8, doc="hidden layers of the MLP")
     hidden_units: int = param(low=1, high=4096, doc="units per hidden layer")
     learning_rate: float = param(low=0.0, low_open=True, high=1.0, doc="Adam's step size")
+    reward_scale: float = param(low=0.0, low_open=True, high=1e6, default=1.0,
+                                doc="the agent learns from the task's rewards times this (the run's files keep "
+                                    "the task's)")
 
     def algorithm(self) -> Callable[..., BaseAlgorithm]:
         """The SB3 algorithm these params are for (DQN, PPO and SAC take gamma, BaseAlgorithm does not)."""
@@ -103,7 +108,7 @@ class NetworkParams(Params):
     def algorithm_kwargs(self) -> dict[str, Any]:
         """The algorithm's keyword arguments from these params (the network's are policy_kwargs')."""
         values = self.to_mapping()
-        for key in ("hidden_layers", "hidden_units"):
+        for key in ("hidden_layers", "hidden_units", "reward_scale"):
             del values[key]
         return values
 
@@ -319,6 +324,22 @@ def make_vec_env(task: TaskSpec[Any], n: int, backend: str, seed: int, params: T
                                         ros_timeout=ros_timeout))
 
 
+class ScaledRewards(VecEnvWrapper):
+    """The rewards of `venv` times `scale`, as the agent learns from them (the network's targets then have the
+    size its learning rate suits: a return of 5000 is 5 at scale 0.001)."""
+
+    def __init__(self, venv: VecEnv, scale: float):
+        super().__init__(venv)
+        self.scale = scale
+
+    def reset(self) -> VecEnvObs:
+        return self.venv.reset()
+
+    def step_wait(self) -> VecEnvStepReturn:
+        observations, rewards, dones, infos = self.venv.step_wait()
+        return observations, rewards * np.float32(self.scale), dones, infos
+
+
 class _EpisodeLogger(BaseCallback):
     """Follows each env's episodes in SB3's rollouts and hands every finished one to the trainer."""
 
@@ -332,11 +353,12 @@ class _EpisodeLogger(BaseCallback):
 
     def _on_step(self) -> bool:
         rewards, dones, infos = self.locals["rewards"], self.locals["dones"], self.locals["infos"]
-        on_step = self.trainer.on_step
+        on_step, scale = self.trainer.on_step, self.trainer.agent_params.reward_scale
         for i in range(len(dones)):
-            self.returns[i] += float(rewards[i])
+            reward = float(rewards[i]) / scale  # the task's reward
+            self.returns[i] += reward
             self.steps[i] += 1
-            on_step(float(rewards[i]), self.returns[i])
+            on_step(reward, self.returns[i])
             if dones[i]:
                 info = infos[i]
                 self.trainer.episode_done(i, self.steps[i], self.returns[i],
@@ -356,6 +378,8 @@ class DeepTrainer(Learner):
         torch.set_num_threads(1)
         self.agent_config = None if agent_config is None else str(agent_config)  # where agent_params came from
         self.env: VecEnv = env if isinstance(env, VecEnv) else DummyVecEnv([lambda: env])
+        if agent_params.reward_scale != 1.0:
+            self.env = ScaledRewards(self.env, agent_params.reward_scale)
         self.task, self.params, self.agent, self.run = task, params, agent, run
         self.on_step, self.should_stop = hooks.on_step, hooks.should_stop
         self.max_steps = max_steps if max_steps is not None else params.nepisodes * params.nsteps  # at most
@@ -391,7 +415,11 @@ class DeepTrainer(Learner):
         state = restored_state(checkpoint, CHECKPOINT_FORMAT, self.task)
         if checkpoint["agent"] != self.agent.name:
             raise ValueError(f"it is of agent {checkpoint['agent']!r}, this run trains {self.agent.name!r}")
-        if checkpoint["agent_params"] != self.agent_params.to_mapping():
+        try:  # its params with today's defaults (a checkpoint from before reward_scale has none)
+            saved = self.agent_params.from_mapping(checkpoint["agent_params"], "agent_params")
+        except ParamError as error:
+            raise ValueError(str(error)) from None
+        if saved != self.agent_params:
             raise ValueError("its agent params differ from this run's (they shape the network the weights fit)")
         num_timesteps = checkpoint["num_timesteps"]
         if not (isinstance(num_timesteps, int) and num_timesteps >= 0):
