@@ -12,6 +12,7 @@ from moving_cube_training.one_disk_walk import ONE_DISK_WALK
 from robot_rl.agents import AGENTS, agent_of, checkpoint_of, find_agent, main
 from robot_rl.params import ParamError, Params
 from robot_rl.results import DEEP_CHECKPOINT, QTABLE_CHECKPOINT
+from robot_rl.task import find_task
 
 ROOT = Path(__file__).resolve().parents[2]
 LAUNCH_FILES = ["robot_rl/launch/train.launch", "moving_cube_training/launch/main.launch",
@@ -38,13 +39,15 @@ def test_every_agent_has_a_loadable_default_config(name):
 
 
 def test_a_task_s_own_agent_config_is_picked_where_there_is_one(tmp_path):
-    from hopper_training.monoped_env import STAY_UP
+    from hopper_training import TASKS as HOPPER_TASKS
+    hop_in_place = find_task(HOPPER_TASKS, "hop_in_place")
     agent = find_agent("dqn")
     own = agent.task_config_path(ONE_DISK_WALK)
     assert own.parent == ONE_DISK_WALK.config_path.parent / "agents" and own.name == "one_disk_walk.dqn.yaml"
     assert agent.config_for(ONE_DISK_WALK) == own and own.is_file(), "the cube's tuned DQN config"
     assert agent.load_params(own) != agent.load_params(), "tuned: not the general file's values"
-    assert not agent.task_config_path(STAY_UP).exists() and agent.config_for(STAY_UP) == agent.config_path
+    assert find_agent("sac").config_for(hop_in_place) == find_agent("sac").config_path, \
+        "no file of the task's own for this agent: the agent's general one"
     no_file = dataclasses.replace(ONE_DISK_WALK, name="no_such_task")
     assert agent.config_for(no_file) == agent.config_path, "no file of the task's own: the agent's general one"
     assert find_agent("qlearn").config_for(ONE_DISK_WALK) is None and \
