@@ -134,7 +134,8 @@ def test_a_deep_agent_sweep_sets_the_agent_s_params_and_step_budget_of_each_tria
         assert summary["completed"] and summary["env_steps"] == 60, "the step budget, not nepisodes, ended it"
         assert summary["agent_config"] == str(sweep / "configs" / f"{name}.agent.yaml")
         tuned = yaml.safe_load((REPO / "moving_cube_training/config/agents/one_disk_walk.dqn.yaml").read_text())
-        assert checkpoint["agent_params"] == tuned | {"learning_rate": rate, "learning_starts": 20}, \
+        assert checkpoint["agent_params"] == {"reward_scale": 1.0} | tuned | {"learning_rate": rate,
+                                                                             "learning_starts": 20}, \
             "the task's own DQN file with the trial's values"
     assert training_processes(cluster) == []
 
