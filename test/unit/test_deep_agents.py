@@ -188,7 +188,8 @@ def test_a_checkpoint_from_before_reward_scale_resumes_and_another_scale_is_refu
     checkpoint = json.loads(agent_json.read_text())
     del checkpoint["agent_params"]["reward_scale"]
     agent_json.write_text(json.dumps(checkpoint))
-    with pytest.raises(ValueError, match="agent.json: not a usable checkpoint: its agent params differ"):
+    refusal = r"agent.json: not a usable checkpoint: its agent params differ from this run's \(reward_scale 1.0 there"
+    with pytest.raises(ValueError, match=refusal + r", 0.5 here\)"):
         train(tmp_path, "dqn", 1, resume=True, nepisodes=4, reward_scale=0.5)
     _, summary = train(tmp_path, "dqn", 1, resume=True, nepisodes=4)
     assert summary["completed"] and [r.episode for r in run.read_episodes()] == [1, 2, 3, 4]

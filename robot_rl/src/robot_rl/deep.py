@@ -420,7 +420,11 @@ class DeepTrainer(Learner):
         except ParamError as error:
             raise ValueError(str(error)) from None
         if saved != self.agent_params:
-            raise ValueError("its agent params differ from this run's (they shape the network the weights fit)")
+            here = self.agent_params.to_mapping()
+            differ = ", ".join(f"{key} {value!r} there, {here[key]!r} here"
+                               for key, value in saved.to_mapping().items() if value != here[key])
+            raise ValueError(f"its agent params differ from this run's ({differ}): resume with the params the run "
+                             "began with")
         num_timesteps = checkpoint["num_timesteps"]
         if not (isinstance(num_timesteps, int) and num_timesteps >= 0):
             raise ValueError(f"num_timesteps {num_timesteps!r} is not a count")
