@@ -8,6 +8,7 @@ import pytest
 import yaml
 
 from hopper_training.hop_level import HOP_LEVEL
+from workspace_tools.paths import REPO
 from workspace_tools.processes import launch_args
 
 TRAINING_TIMEOUT = 240.0  # wall s: 3 episodes of at most 0.5 s of sim time at 1 ms lockstep steps, plus start-up
@@ -62,3 +63,23 @@ def test_three_hop_level_episodes_over_ros_then_evaluate(ros_master, tmp_path):
         assert 0.0 < result["mean_time_upright_s"] <= 0.3 + 1e-9
         assert "mean_drift" in result
     print(f"training {training_time:.1f} s")
+
+
+SHIPPED_RUN = "hopper_training/policies/demo"  # training seed 0's hop_in_place run, trained on 2026-11-25
+
+
+def test_the_shipped_runs_first_episodes_repeat_to_the_last_bit(ros_master, tmp_path):
+    """Its params as the config, seed 0, two episodes over ROS: every column of episodes.csv but the wall time
+    as the shipped run wrote it. Fails where numpy's OpenBLAS kernels are not pinned (./ws pins them to
+    Haswell's: docs/training.md, "The same seed, the same run") on a machine whose own kernels round otherwise."""
+    shipped = REPO / SHIPPED_RUN
+    results = tmp_path / "results"
+    training = ros_master.run(["roslaunch", "hopper_training", "main.launch", *launch_args(
+        task="hop_in_place", nepisodes=2, results_dir=results, config=shipped / "params.yaml", video="false")],
+        timeout=TRAINING_TIMEOUT)
+    assert training.returncode == 0, (training.stdout + training.stderr)[-4000:]
+
+    def rows(path):
+        with open(path, newline="") as f:
+            return [{key: value for key, value in row.items() if key != "wall_time"} for row in csv.DictReader(f)]
+    assert rows(results / "monoped_hop_level" / "latest" / "episodes.csv") == rows(shipped / "episodes.csv")[:2]
