@@ -140,7 +140,7 @@ enter_environment() {
   # numpy's OpenBLAS picks its kernels by CPU, and an AVX-512 machine's round differently in the last bit: the
   # hop cycle's small matrix products then set chaotic hopping on another course
   # (docs/training.md, "The same seed, the same run").
-  # The Haswell kernels (AVX2, every x86-64 CPU since 2013) give the same results on every machine with AVX2.
+  # The Haswell kernels (AVX2 and FMA) give the same results on every machine that has AVX2.
   if grep -qw avx2 /proc/cpuinfo 2>/dev/null; then export OPENBLAS_CORETYPE="${OPENBLAS_CORETYPE:-Haswell}"; fi
   export ROBOT_RL_CLUSTER_DIR="${ROBOT_RL_CLUSTER_DIR:-$STATE/cluster}"  # ./ws cluster's node (robot_rl.cluster)
 }
