@@ -19,7 +19,7 @@ import time
 import rospy
 
 from moving_cube_training.cube_rl_utils import CubeRLUtils
-from pybullet_sim.client import SimConnectionError
+from pybullet_sim.ros.client import SimConnectionError
 
 SIM_SECONDS_BETWEEN_COMMANDS = 2.0
 WALL_TIMEOUT = 30.0  # wall seconds allowed for those 2 s of sim time

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The PyBullet stand-in for Gazebo (see pybullet_sim.node)."""
+"""The PyBullet stand-in for Gazebo (see pybullet_sim.ros.node)."""
 import signal
 import sys
 
@@ -10,5 +10,5 @@ if __name__ == "__main__":
     signal.signal(signal.SIGINT, signal.SIG_DFL)
     import rospy
 
-    from pybullet_sim.node import main
+    from pybullet_sim.ros.node import main
     sys.exit(main(rospy.myargv(sys.argv)))

@@ -18,7 +18,7 @@ from geometry_msgs.msg import Vector3
 from gazebo_msgs.msg import ModelState
 from gazebo_msgs.srv import GetModelState, GetPhysicsProperties, SetModelState, SetPhysicsProperties
 from std_msgs.msg import Float64
-from pybullet_sim.client import CommandPublisher, SimConnection
+from pybullet_sim.ros.client import CommandPublisher, SimConnection
 
 rospy.init_node("absurd_values", anonymous=True)
 sim = SimConnection(timeout=30.0)  # waits for the sim's services

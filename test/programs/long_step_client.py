@@ -17,7 +17,7 @@ from std_srvs.srv import Empty
 
 from controller_manager_msgs.srv import ListControllers
 from gazebo_msgs.srv import GetPhysicsProperties
-from pybullet_sim.client import CommandPublisher, SimConnection
+from pybullet_sim.ros.client import CommandPublisher, SimConnection
 from pybullet_sim.srv import Step, StepRequest
 
 TIMEOUT = 10.0

@@ -15,8 +15,8 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, JointState
 
 from gazebo_msgs.msg import ContactsState
-from pybullet_sim import messages
-from pybullet_sim.client import SensorSubscriber, SimConnection, SimConnectionError
+from pybullet_sim.ros import messages
+from pybullet_sim.ros.client import SensorSubscriber, SimConnection, SimConnectionError
 from pybullet_sim.sensors import unpack_readings
 
 TIMEOUT = 10.0

@@ -7,8 +7,8 @@ import sys
 import rospy
 from nav_msgs.msg import Odometry
 
-from pybullet_sim import messages
-from pybullet_sim.client import CommandPublisher, SensorSubscriber, SimConnection
+from pybullet_sim.ros import messages
+from pybullet_sim.ros.client import CommandPublisher, SensorSubscriber, SimConnection
 
 TIMEOUT = 10.0
 

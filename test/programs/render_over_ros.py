@@ -14,7 +14,7 @@ from visualization_msgs.msg import Marker
 
 import hopper_training
 import moving_cube_training
-from pybullet_sim.client import SimConnectionError
+from pybullet_sim.ros.client import SimConnectionError
 from robot_rl.task import TASKS, make_env
 
 MOVES = {"MovingCubeOneDiskWalk-v0": [0] * 12, "Monoped-v0": [3] * 300 + [4] * 300}

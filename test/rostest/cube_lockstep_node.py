@@ -9,8 +9,8 @@ from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from pybullet_sim import messages
-from pybullet_sim.client import CommandPublisher, SensorSubscriber, SimConnection, SimConnectionError
+from pybullet_sim.ros import messages
+from pybullet_sim.ros.client import CommandPublisher, SensorSubscriber, SimConnection, SimConnectionError
 from pybullet_sim.sensors import unpack_readings
 from pybullet_sim.srv import StepRequest
 

@@ -17,7 +17,7 @@ from std_srvs.srv import Empty
 
 from moving_cube_training import cube_rl_utils
 from moving_cube_training.cube_rl_utils import CubeRLUtils
-from pybullet_sim.client import SimConnectionError
+from pybullet_sim.ros.client import SimConnectionError
 
 SCRIPT = ["rosrun", "moving_cube_training", "cube_rl_systems_test.py"]
 SCRIPT_TIMEOUT = 120.0  # wall s; the script needs ~6 s of sim time (~6 s at real time) plus start-up

@@ -20,7 +20,7 @@ from sensor_msgs.msg import JointState
 from controller_manager_msgs.srv import SwitchController, SwitchControllerRequest
 from gazebo_msgs.msg import ModelState
 from gazebo_msgs.srv import GetLinkState, GetModelState, GetPhysicsProperties, GetWorldProperties, SetModelState
-from pybullet_sim.client import CommandPublisher, SensorSubscriber, SimConnection
+from pybullet_sim.ros.client import CommandPublisher, SensorSubscriber, SimConnection
 from workspace_tools.gazebo_style import ControllersConnection, GazeboConnection
 
 TIMEOUT = 10.0

@@ -23,7 +23,7 @@ from controller_manager_msgs.srv import (
 )
 from gazebo_msgs.msg import ContactsState, ODEPhysics
 from gazebo_msgs.srv import GetModelState, GetPhysicsProperties, SetPhysicsProperties, SetPhysicsPropertiesRequest
-from pybullet_sim.client import CommandPublisher, SensorSubscriber, SimConnection
+from pybullet_sim.ros.client import CommandPublisher, SensorSubscriber, SimConnection
 from workspace_tools.gazebo_style import TUTORIAL_ODE, ControllersConnection, GazeboConnection
 
 TIMEOUT = 10.0

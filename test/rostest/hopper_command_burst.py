@@ -12,7 +12,7 @@ import sys
 import rospy
 import rospy.impl.tcpros_pubsub as tcpros_pubsub
 
-from pybullet_sim.client import CommandPublisher, SimConnection
+from pybullet_sim.ros.client import CommandPublisher, SimConnection
 
 
 class NoYield:

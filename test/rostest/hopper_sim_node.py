@@ -17,7 +17,7 @@ from sensor_msgs.msg import Imu, JointState
 from tf2_msgs.msg import TFMessage
 
 from gazebo_msgs.msg import ContactsState
-from pybullet_sim.client import CommandPublisher, SensorSubscriber, SimConnection
+from pybullet_sim.ros.client import CommandPublisher, SensorSubscriber, SimConnection
 
 TIMEOUT = 10.0
 GRAVITY = 9.81

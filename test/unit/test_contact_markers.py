@@ -8,7 +8,7 @@ from visualization_msgs.msg import Marker
 
 from gazebo_msgs.msg import ContactsState, ContactState
 from pybullet_sim.config import SensorConfig
-from pybullet_sim.contact_markers import force_marker
+from pybullet_sim.ros.markers import force_marker
 
 IN_LINK_FRAME = SensorConfig(name="foot", type="contact", link="foot", topic="/foot", frame_id="foot", update_rate=1)
 IN_WORLD = SensorConfig(name="foot", type="contact", link="foot", topic="/foot", frame_id="world", update_rate=1)

@@ -21,7 +21,8 @@ from hopper_training.controller import (
 from hopper_training.controller_policy import ControllerPolicy, controller_params
 from hopper_training.hop_trials import lean, load_sim_config, make_world, run_trial
 from hopper_training.monoped_env import MONOPED
-from pybullet_sim.config import ConfigError, parse_robot_config
+from pybullet_sim.config import parse_robot_config
+from pybullet_sim.errors import ConfigError
 from robot_rl import evaluation
 from robot_rl.evaluation import ScriptedPolicy
 from robot_rl.results import aggregate

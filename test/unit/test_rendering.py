@@ -12,7 +12,8 @@ import pytest
 
 import hopper_training
 import moving_cube_training
-from pybullet_sim.config import ConfigError, parse_robot_config
+from pybullet_sim.config import parse_robot_config
+from pybullet_sim.errors import ConfigError
 from robot_rl.task import make_env
 from robot_rl.video import VideoRecorder, frame_every
 

@@ -11,8 +11,10 @@ import yaml
 
 from hopper_training.monoped_env import JOINTS, MONOPED
 from moving_cube_training.one_disk_walk import MOVING_CUBE
-from pybullet_sim.config import ConfigError, parse_robot_config
+from pybullet_sim.config import parse_robot_config
+from pybullet_sim.errors import ConfigError
 from pybullet_sim.msg import Readings
+from pybullet_sim.ros.messages import SENSOR_MESSAGES
 from pybullet_sim.sensors import SENSOR_KINDS
 from pybullet_sim.urdf import parse_urdf_joints
 from pybullet_sim.world import World
@@ -54,7 +56,7 @@ def test_each_reading_goes_to_its_message_and_back(worlds, robot):
     world = worlds[robot]
     stamp = rospy.Time(0, world.time_ns)
     for sensor in world.config.sensors:
-        side = SENSOR_KINDS[sensor.type].messages()
+        side = SENSOR_MESSAGES[sensor.type]
         reading = world.read_sensor(sensor)
         message = side.to_message(reading, stamp)
         assert isinstance(message, side.type)
@@ -64,7 +66,11 @@ def test_each_reading_goes_to_its_message_and_back(worlds, robot):
 def test_readings_has_a_field_of_each_kinds_message():
     fields = dict(zip(Readings.__slots__, Readings._slot_types))
     for kind in SENSOR_KINDS.values():
-        assert fields[kind.readings_field] == f"{kind.messages().type._type}[]"
+        assert fields[kind.readings_field] == f"{SENSOR_MESSAGES[kind.name].type._type}[]"
+
+
+def test_every_kind_has_its_message_side():
+    assert list(SENSOR_MESSAGES) == list(SENSOR_KINDS)
 
 
 def test_the_sim_config_takes_exactly_the_registered_kinds(cube_params):

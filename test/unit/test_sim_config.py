@@ -3,7 +3,8 @@ import math
 
 import pytest
 
-from pybullet_sim.config import JOINT_STATE_CONTROLLER, VELOCITY_CONTROLLER, ConfigError, parse_robot_config
+from pybullet_sim.config import JOINT_STATE_CONTROLLER, VELOCITY_CONTROLLER, parse_robot_config
+from pybullet_sim.errors import ConfigError
 
 WHEEL = "inertia_wheel_roll_joint_velocity_controller"
 P3D = "p3d_base_controller"

@@ -157,8 +157,8 @@ def test_the_direct_backend_refuses_to_pass_on_a_state_that_blew_up():
 def test_the_ros_backend_refuses_an_answer_with_a_non_finite_number():
     """The lockstep answer's numbers (pybullet_sim/PackedReadings) are summed once per step; a NaN among them is
     named. No sim is needed: the answer is made here as the sim node packs it."""
-    from pybullet_sim.client import SimConnectionError
     from pybullet_sim.msg import PackedReadings
+    from pybullet_sim.ros.client import SimConnectionError
     from pybullet_sim.sensors import pack_readings
     from robot_rl.backends import RosBackend
 

@@ -8,9 +8,10 @@ import pybullet as p
 import pytest
 import yaml
 
-from pybullet_sim.config import ConfigError, parse_robot_config
+from pybullet_sim.config import parse_robot_config
+from pybullet_sim.errors import ConfigError, UrdfError
 from pybullet_sim.readings import OdometryReading
-from pybullet_sim.world import UrdfError, World
+from pybullet_sim.world import World
 
 WHEEL = "inertia_wheel_roll_joint_velocity_controller"
 P3D = "p3d_base_controller"

@@ -24,9 +24,9 @@ from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64
 
 from gazebo_msgs.msg import ContactsState
-from pybullet_sim.messages import contact_reading, imu_reading, joint_state_reading, odometry_reading
 from pybullet_sim.readings import ContactReading, ImuReading, OdometryReading
-from pybullet_sim.shutdown import shutdown_on_signals
+from pybullet_sim.ros.messages import contact_reading, imu_reading, joint_state_reading, odometry_reading
+from pybullet_sim.ros.shutdown import shutdown_on_signals
 
 from .controller import HopController, HopGains, hop_input
 

@@ -22,7 +22,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from tf.transformations import euler_from_quaternion
 
-from pybullet_sim.client import SimConnectionError
+from pybullet_sim.ros.client import SimConnectionError
 
 JOINT_STATES_TOPIC = "/moving_cube/joint_states"
 ODOM_TOPIC = "/moving_cube/odom"

@@ -1,4 +1,4 @@
-"""PyBullet stand-in for Gazebo: World (physics, no ROS), the sim node, and the SimConnection client."""
+"""PyBullet stand-in for Gazebo: the World and its parts (no ROS) here, the sim node and its client in .ros."""
 from pkgutil import extend_path
 
 # The generated msg and srv modules live in the devel (or install) space's pybullet_sim. catkin's

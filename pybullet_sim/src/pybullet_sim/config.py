@@ -10,6 +10,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
+from .errors import ConfigError
 from .sensors import SENSOR_KINDS
 from .validation import (
     MAX_CAMERA_ANGLE,
@@ -18,11 +19,10 @@ from .validation import (
     MAX_POSITION,
     MAX_RATE,
     MAX_SPAWN_ANGLE,
-    ConfigError,
     param,
 )
 
-__all__ = ["ConfigError", "RobotConfig", "parse_robot_config"]
+__all__ = ["RobotConfig", "parse_robot_config"]
 
 JOINT_STATE_CONTROLLER = "joint_state_controller/JointStateController"
 VELOCITY_CONTROLLER = "effort_controllers/JointVelocityController"

@@ -1,11 +1,10 @@
-"""The registry of sensor kinds: everything the sim and its clients need to know about each kind, in one entry.
+"""The registry of sensor kinds: everything the sim's core needs to know about each kind, in one entry.
 
 A kind (the `type` of a sensor in config/<robot>_sim.yaml: p3d, imu, contact) names its reading type,
-the World's reader, the ROS message the sim node publishes and its conversions both ways, its field
-in pybullet_sim/Readings, how its values are packed into pybullet_sim/PackedReadings, and whether the
-sim node also broadcasts the sensor link's pose on /tf. Adding a
-sensor kind is one SensorKind in SENSOR_KINDS (with its reading type, World reader and message
-conversions). No ROS and no PyBullet are imported here: the message side is imported when asked for.
+the World's reader, its field in pybullet_sim/Readings, how its values are packed into
+pybullet_sim/PackedReadings, and whether the sim node also broadcasts the sensor link's pose on /tf.
+Adding a sensor kind is one SensorKind in SENSOR_KINDS (with its reading type and World reader) and its
+message type and conversions in pybullet_sim.ros.messages.SENSOR_MESSAGES. No ROS and no PyBullet here.
 
 Packed layout (pack_readings / unpack_readings), in the order of the robot's sim config:
   values: stamp, n joints, n positions, n velocities, n efforts, then each sensor's values
@@ -29,15 +28,6 @@ Names = Sequence[str]
 
 
 @dataclass(frozen=True)
-class MessageSide:
-    """A kind's ROS message type and its conversions: reading -> message (stamped) and message -> reading."""
-
-    type: type
-    to_message: Callable[[Any, Any], Any]
-    to_reading: Callable[[Any], Any]
-
-
-@dataclass(frozen=True)
 class SensorKind:
     name: str                                         # the YAML type
     reading: type                                     # its pybullet_sim.readings type
@@ -46,7 +36,6 @@ class SensorKind:
     pack: Callable[[Any, list[float], list[str]], None]   # append a reading's values and names
     # (values, names, value index, name index, stamp, frame_id) -> (reading, value index, name index)
     unpack: Callable[[Values, Names, int, int, float, str], tuple[Any, int, int]]
-    messages: Callable[[], MessageSide]               # imports ROS: only where messages are used
     broadcasts_pose: bool = False                     # the sim node also puts the link's pose on /tf
 
 
@@ -92,34 +81,12 @@ def _unpack_contact(values: Values, names: Names, i: int, k: int, stamp: float,
     return ContactReading(stamp, frame_id, tuple(points), total_force, total_torque), i, k
 
 
-def _odometry_messages() -> MessageSide:
-    from nav_msgs.msg import Odometry
-
-    from . import messages
-    return MessageSide(Odometry, messages.odometry_msg, messages.odometry_reading)
-
-
-def _imu_messages() -> MessageSide:
-    from sensor_msgs.msg import Imu
-
-    from . import messages
-    return MessageSide(Imu, messages.imu_msg, messages.imu_reading)
-
-
-def _contact_messages() -> MessageSide:
-    from gazebo_msgs.msg import ContactsState
-
-    from . import messages
-    return MessageSide(ContactsState, messages.contacts_msg, messages.contact_reading)
-
-
 SENSOR_KINDS: dict[str, SensorKind] = {kind.name: kind for kind in (
     SensorKind("p3d", OdometryReading, "odometry", lambda world, sensor: world.read_odometry(sensor),
-               _pack_odometry, _unpack_odometry, _odometry_messages, broadcasts_pose=True),
-    SensorKind("imu", ImuReading, "imu", lambda world, sensor: world.read_imu(sensor), _pack_imu, _unpack_imu,
-               _imu_messages),
+               _pack_odometry, _unpack_odometry, broadcasts_pose=True),
+    SensorKind("imu", ImuReading, "imu", lambda world, sensor: world.read_imu(sensor), _pack_imu, _unpack_imu),
     SensorKind("contact", ContactReading, "contacts", lambda world, sensor: world.read_contact(sensor),
-               _pack_contact, _unpack_contact, _contact_messages),
+               _pack_contact, _unpack_contact),
 )}
 _KIND_OF_READING = {kind.reading: kind for kind in SENSOR_KINDS.values()}
 

@@ -10,9 +10,7 @@ import math
 import xml.etree.ElementTree as ElementTree
 from dataclasses import dataclass
 
-
-class UrdfError(ValueError):
-    """The robot description is missing, not XML, or not a URDF PyBullet can load."""
+from .errors import UrdfError
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """One check for the sim's parameters: a value of the expected type and range, or a ConfigError naming it;
 and the bounds of the state values the sim accepts from outside, stated once.
 
-The robot's sim config (pybullet_sim.config) and the sim node's own private params (pybullet_sim.node)
+The robot's sim config (pybullet_sim.config) and the sim node's own private params (pybullet_sim.ros.node)
 both read their parameters through `param`, so a mistake reads the same wherever it is made.
 
 Gazebo takes any finite number for a pose, a twist, gravity or a time step; PyBullet does not simulate
@@ -17,6 +17,8 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any, TypeVar
 
+from .errors import ConfigError
+
 T = TypeVar("T")
 REQUIRED: Any = object()  # `param`'s default when the parameter must be given
 MAX_POSITION = 1.0e6  # m from the origin along each axis: doubles keep 1e-10 m there
@@ -30,10 +32,6 @@ MAX_RATE = 1.0e6  # Hz of sim time: a publish_rate or update_rate above one per 
 MAX_CAMERA_ANGLE = 360.0  # degrees: the camera's yaw and pitch within a turn either way
 MAX_NOISE = 1.0  # a sensor's gaussian_noise (std dev in m, rad, m/s, rad/s, m/s^2): beyond it a reading hides the state
 _WHAT = {float: "float (a finite number)", int: "int", bool: "bool", str: "a non-empty string", dict: "a dictionary"}
-
-
-class ConfigError(ValueError):
-    """A parameter of the simulator is missing, mistyped or out of range; the message names it."""
 
 
 def param(params: Mapping[str, Any], key: str, kind: type[T], prefix: str, default: Any = REQUIRED,

@@ -39,17 +39,18 @@ from typing import Any, TypeVar, cast
 import numpy as np
 import pybullet as p
 
-from .config import ConfigError, RobotConfig, SensorConfig
+from .config import RobotConfig, SensorConfig
+from .errors import ConfigError, UrdfError
 from .measurements import Measurements
 from .pid import EffortPid
 from .readings import FrameState, JointStateReading
 from .sensors import SENSOR_KINDS
 from .starts import MAX_REMEMBERED_STARTS, Change, StartKey, StartMemory
 from .transforms import cross, normalized, quaternion_multiply, rotate, transpose_rotate
-from .urdf import UrdfError, UrdfJoint, parse_urdf_joints
+from .urdf import UrdfJoint, parse_urdf_joints
 from .validation import frame_state_problem
 
-__all__ = ["DEFAULT_GRAVITY", "MAX_REMEMBERED_STARTS", "SolverSettings", "UrdfError", "World"]
+__all__ = ["DEFAULT_GRAVITY", "MAX_REMEMBERED_STARTS", "SolverSettings", "World"]
 
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 MAX_IMAGE_SIZE = 4096  # pixels per side of a rendered image

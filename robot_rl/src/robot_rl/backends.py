@@ -194,7 +194,7 @@ def init_ros_node(name: str) -> None:
     import rosgraph
     import rospy
 
-    from pybullet_sim.client import SimConnectionError
+    from pybullet_sim.ros.client import SimConnectionError
     if rospy.core.is_initialized():
         return
     uri = rosgraph.get_master_uri()
@@ -225,7 +225,7 @@ class RosBackend(Backend):
         """`hint`: what to check when the sim does not answer (default: whether its launch file runs)."""
         import rospy
 
-        from pybullet_sim.client import SimConnection, SimConnectionError
+        from pybullet_sim.ros.client import SimConnection, SimConnectionError
 
         init_ros_node("robot_rl_env")
         hint = hint or f"is the sim node running? (e.g. {robot.sim_launch})"
@@ -255,7 +255,7 @@ class RosBackend(Backend):
 
     def _readings(self, packed: Any) -> Readings:
         """Readings from a pybullet_sim/PackedReadings answer."""
-        from pybullet_sim.client import SimConnectionError
+        from pybullet_sim.ros.client import SimConnectionError
         try:
             joints, sensors = unpack_readings(packed.values, packed.names, self._sensor_types)
         except ValueError as error:
@@ -278,7 +278,7 @@ class RosBackend(Backend):
 
     def _check_stamp(self, stamp: float, expected: float | None, what: str) -> None:
         """SimConnectionError if the sim's answer to `what` is not stamped `expected` (None: not known yet)."""
-        from pybullet_sim.client import SimConnectionError
+        from pybullet_sim.ros.client import SimConnectionError
         previous, self._stamp = self._stamp, stamp
         if expected is None or abs(stamp - expected) <= STAMP_TOLERANCE_S:
             return
@@ -299,7 +299,7 @@ class RosBackend(Backend):
         import rospy
 
         from gazebo_msgs.srv import GetPhysicsProperties
-        from pybullet_sim.client import PHYSICS_SERVICE
+        from pybullet_sim.names import PHYSICS_SERVICE
         proxy = rospy.ServiceProxy(PHYSICS_SERVICE, GetPhysicsProperties)
         try:
             return float(proxy().time_step)
@@ -330,8 +330,8 @@ class RosBackend(Backend):
 
         from gazebo_msgs.msg import ModelState
         from gazebo_msgs.srv import SetModelConfiguration, SetModelState
-        from pybullet_sim import messages
-        from pybullet_sim.client import SimConnectionError
+        from pybullet_sim.ros import messages
+        from pybullet_sim.ros.client import SimConnectionError
         names = ("/gazebo/set_model_configuration", "/gazebo/set_model_state")
         if self._placing is None:
             for name in names:
@@ -378,15 +378,15 @@ class GazeboStyleBackend(RosBackend):
         from rosgraph_msgs.msg import Clock
         from sensor_msgs.msg import JointState
 
-        from pybullet_sim import messages
-        from pybullet_sim.client import CommandPublisher, SensorSubscriber
-        from pybullet_sim.sensors import SENSOR_KINDS
+        from pybullet_sim.ros import messages
+        from pybullet_sim.ros.client import CommandPublisher, SensorSubscriber
+        from pybullet_sim.ros.messages import SENSOR_MESSAGES
 
         super().__init__(robot, timeout, sim_node)
         config, hint = self.config, f"is the sim node running? (e.g. {robot.sim_launch})"
         self._publishers = {c.name: CommandPublisher(config.command_topic(c), hint) for c in config.controllers}
         self._joints = SensorSubscriber(config.joint_states_topic, JointState, messages.joint_state_reading, hint)
-        sides = {sensor.name: SENSOR_KINDS[sensor.type].messages() for sensor in config.sensors}
+        sides = {sensor.name: SENSOR_MESSAGES[sensor.type] for sensor in config.sensors}
         self._sensors = {s.name: SensorSubscriber(s.topic, sides[s.name].type, sides[s.name].to_reading, hint)
                          for s in config.sensors}
         for publisher in self._publishers.values():
@@ -405,7 +405,7 @@ class GazeboStyleBackend(RosBackend):
     def step(self, physics_steps: int) -> Readings:
         import rospy
 
-        from pybullet_sim.client import SimConnectionError
+        from pybullet_sim.ros.client import SimConnectionError
         with self._clock_changed:
             target = self._clock + rospy.Duration.from_sec(physics_steps * self.time_step)
         self.sim.unpause()

@@ -43,7 +43,7 @@ import gymnasium
 import numpy as np
 import yaml
 
-from pybullet_sim.client import SimConnectionError
+from pybullet_sim.ros.client import SimConnectionError
 
 from .agents import agent_of, checkpoint_of
 from .backends import SimStateError

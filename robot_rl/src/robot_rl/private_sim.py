@@ -177,7 +177,7 @@ class PrivateSim:
     def _sim_ready(self) -> bool:
         import rosgraph
 
-        from pybullet_sim.client import RENDER_SERVICE
+        from pybullet_sim.names import RENDER_SERVICE
         try:
             self._master().lookupService(RENDER_SERVICE)  # the node registers it after every other service
             return True

@@ -22,7 +22,7 @@ from typing import Any
 import rospy
 from std_msgs.msg import Float64
 
-from pybullet_sim.shutdown import shutdown_on_signals
+from pybullet_sim.ros.shutdown import shutdown_on_signals
 
 from .atomic import write_bytes_atomic
 from .results import MOVING_AVERAGE, moving_average

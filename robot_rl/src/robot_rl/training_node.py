@@ -32,8 +32,8 @@ import rospkg
 import rospy
 from std_msgs.msg import Float64
 
-from pybullet_sim.client import SimConnectionError
-from pybullet_sim.shutdown import shutdown_on_signals, shutting_down
+from pybullet_sim.ros.client import SimConnectionError
+from pybullet_sim.ros.shutdown import shutdown_on_signals, shutting_down
 
 from .agents import DEFAULT_AGENT, AgentSpec, Trainer, find_agent
 from .cluster import ClusterError

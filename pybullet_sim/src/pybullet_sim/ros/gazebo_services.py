@@ -1,14 +1,16 @@
 """Gazebo's physics, world and model services and ros_control's controller manager services, on the sim node.
 
 An adapter: each handler turns a gazebo_msgs or controller_manager_msgs request into World or
-ControllerManager calls (under the node's World lock) and the result into Gazebo's answer. Services:
+ControllerManager calls (under the node's World lock) and the result into Gazebo's answer. What it needs
+of the node is the SimHost protocol below. Services:
 /gazebo/{get,set}_physics_properties, get_world_properties, {get,set}_model_state, set_model_configuration,
 get_link_state, and <robot_namespace>/controller_manager/{switch,list,load,unload}_controller(s). Bad
 requests get success false (ok false) and change nothing.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from contextlib import AbstractContextManager
+from typing import Any, Protocol
 
 import rospy
 from geometry_msgs.msg import Vector3
@@ -41,20 +43,42 @@ from gazebo_msgs.srv import (
     SetPhysicsPropertiesResponse,
 )
 
-from . import messages, physics_properties
-from .physics_properties import OdeConfig, PhysicsProperties
-from .transforms import absolute_state, relative_state
-
-if TYPE_CHECKING:
-    from .node import SimNode
+from ..config import RobotConfig
+from ..controller_manager import ControllerManager
+from ..physics_properties import OdeConfig, PhysicsProperties, solver_settings
+from ..physics_properties import check as physics_problem
+from ..physics_properties import not_honoured as ode_not_honoured
+from ..physics_properties import real_time_factor as physics_real_time_factor
+from ..transforms import absolute_state, relative_state
+from ..world import SolverSettings, World
+from .messages import controller_state_msg, frame_state, ode_config, ode_physics_msg, pose_twist_msgs
 
 WORLD_FRAMES = ("", "world", "map", "/map")  # the names gazebo_ros takes for the world frame
+
+
+class SimHost(Protocol):
+    """What the services need of the sim node: its World, controllers and config, its lock and run state."""
+
+    world: World
+    controllers: ControllerManager
+    config: RobotConfig
+    gui: bool
+    real_time_factor: float
+
+    @property
+    def paused(self) -> bool: ...
+
+    def exclusive(self) -> AbstractContextManager[Any]: ...  # hold the World lock from a service thread
+
+    def stamp(self) -> rospy.Time: ...
+
+    def set_physics(self, time_step: float, gravity, solver: SolverSettings, real_time_factor: float) -> None: ...
 
 
 class GazeboServices:
     """Serves Gazebo's physics, world and model services and the controller manager for `node`."""
 
-    def __init__(self, node: SimNode):
+    def __init__(self, node: SimHost):
         self.node = node
         self._ode = OdeConfig()  # the last accepted ode_config, for get_physics_properties
         self._said_not_honoured: set[str] = set()  # ode_config fields already logged as not honoured
@@ -80,22 +104,22 @@ class GazeboServices:
             world = node.world
             return GetPhysicsPropertiesResponse(
                 time_step=world.time_step, pause=node.paused, max_update_rate=node.real_time_factor / world.time_step,
-                gravity=Vector3(*world.gravity), ode_config=messages.ode_physics_msg(self._ode), success=True,
+                gravity=Vector3(*world.gravity), ode_config=ode_physics_msg(self._ode), success=True,
                 status_message="GetPhysicsProperties: got properties")
 
     def _handle_set_physics(self, request):
         node = self.node
         gravity = request.gravity
         wanted = PhysicsProperties(request.time_step, request.max_update_rate, (gravity.x, gravity.y, gravity.z),
-                                   messages.ode_config(request.ode_config))
-        problem = physics_properties.check(wanted)
+                                   ode_config(request.ode_config))
+        problem = physics_problem(wanted)
         if problem:
             message = f"SetPhysicsProperties refused, nothing changed: {problem}"
             return SetPhysicsPropertiesResponse(success=False, status_message=message)
-        node.set_physics(wanted.time_step, wanted.gravity, physics_properties.solver_settings(wanted.ode),
-                         physics_properties.real_time_factor(wanted.max_update_rate, wanted.time_step))
+        node.set_physics(wanted.time_step, wanted.gravity, solver_settings(wanted.ode),
+                         physics_real_time_factor(wanted.max_update_rate, wanted.time_step))
         self._ode = wanted.ode
-        not_honoured = physics_properties.not_honoured(wanted.ode)
+        not_honoured = ode_not_honoured(wanted.ode)
         new = [reason for name, reason in not_honoured.items() if name not in self._said_not_honoured]
         if new:
             self._said_not_honoured.update(not_honoured)
@@ -134,7 +158,7 @@ class GazeboServices:
             response.header.stamp = node.stamp()  # rospy numbers header.seq itself
         response.header.frame_id = request.relative_entity_name
         state = state if frame is None else relative_state(state, frame)
-        response.pose, response.twist = messages.pose_twist_msgs(state)
+        response.pose, response.twist = pose_twist_msgs(state)
         response.success, response.status_message = True, "GetModelState: got properties"
         return response
 
@@ -147,7 +171,7 @@ class GazeboServices:
         with node.exclusive():
             try:
                 frame = self._frame(wanted.reference_frame)
-                state = messages.frame_state(wanted.pose, wanted.twist)
+                state = frame_state(wanted.pose, wanted.twist)
                 node.world.set_model_state(state if frame is None else absolute_state(state, frame))
             except ValueError as error:
                 return SetModelStateResponse(success=False,
@@ -180,7 +204,7 @@ class GazeboServices:
                 frame = self._frame(request.reference_frame)
             except ValueError as error:
                 return GetLinkStateResponse(success=False, status_message=f"GetLinkState: {error}")
-        pose, twist = messages.pose_twist_msgs(state if frame is None else relative_state(state, frame))
+        pose, twist = pose_twist_msgs(state if frame is None else relative_state(state, frame))
         return GetLinkStateResponse(link_state=LinkState(link_name=request.link_name, pose=pose, twist=twist,
                                                          reference_frame=request.reference_frame),
                                     success=True, status_message="GetLinkState: got state")
@@ -206,7 +230,7 @@ class GazeboServices:
     def _handle_list_controllers(self, _request):
         node = self.node
         with node.exclusive():
-            return ListControllersResponse(controller=[messages.controller_state_msg(info)
+            return ListControllersResponse(controller=[controller_state_msg(info)
                                                        for info in node.controllers.infos()])
 
     def _handle_load_controller(self, request):

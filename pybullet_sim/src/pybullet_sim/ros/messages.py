@@ -1,9 +1,14 @@
-"""Conversions between readings (plain data) and ROS messages, both ways.
+"""Conversions between readings (plain data) and ROS messages, both ways, and each sensor kind's message.
 
 The sim node turns World readings into messages; ROS robot interfaces turn received messages back
-into the same readings, so task envs never see a message type.
+into the same readings, so task envs never see a message type. SENSOR_MESSAGES gives each sensor kind
+of pybullet_sim.sensors.SENSOR_KINDS, by its name, its message type and conversions.
 """
 from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import rospy
@@ -14,9 +19,9 @@ from sensor_msgs.msg import Image, Imu, JointState
 from controller_manager_msgs.msg import ControllerState, HardwareInterfaceResources
 from gazebo_msgs.msg import ContactsState, ContactState, ODEPhysics
 
-from .controller_manager import ControllerInfo
-from .physics_properties import OdeConfig
-from .readings import ContactPoint, ContactReading, FrameState, ImuReading, JointStateReading, OdometryReading
+from ..controller_manager import ControllerInfo
+from ..physics_properties import OdeConfig
+from ..readings import ContactPoint, ContactReading, FrameState, ImuReading, JointStateReading, OdometryReading
 
 
 def _vector(values) -> Vector3:
@@ -167,3 +172,19 @@ def ode_physics_msg(config: OdeConfig) -> ODEPhysics:
 def controller_state_msg(info: ControllerInfo) -> ControllerState:
     return ControllerState(name=info.name, state=info.state, type=info.type, claimed_resources=[
         HardwareInterfaceResources(hardware_interface=info.hardware_interface, resources=list(info.resources))])
+
+
+@dataclass(frozen=True)
+class MessageSide:
+    """A sensor kind's ROS message type and its conversions: reading -> message (stamped) and message -> reading."""
+
+    type: type
+    to_message: Callable[[Any, Any], Any]
+    to_reading: Callable[[Any], Any]
+
+
+SENSOR_MESSAGES: dict[str, MessageSide] = {  # by the kind's name, as pybullet_sim.sensors.SENSOR_KINDS
+    "p3d": MessageSide(Odometry, odometry_msg, odometry_reading),
+    "imu": MessageSide(Imu, imu_msg, imu_reading),
+    "contact": MessageSide(ContactsState, contacts_msg, contact_reading),
+}

@@ -36,15 +36,9 @@ from pybullet_sim.srv import (
     StepResponse,
 )
 
+from ..names import GAZEBO_SERVICES, PHYSICS_SERVICE, RENDER_SERVICE, RESET_SERVICE, STEP_PACKED_SERVICE, STEP_SERVICE
 from .messages import image_array
 
-STEP_SERVICE = "/pybullet_sim/step"
-STEP_PACKED_SERVICE = "/pybullet_sim/step_packed"
-RESET_SERVICE = "/pybullet_sim/reset"
-RENDER_SERVICE = "/pybullet_sim/render"
-PHYSICS_SERVICE = "/gazebo/get_physics_properties"
-GAZEBO_SERVICES = ("/gazebo/pause_physics", "/gazebo/unpause_physics", "/gazebo/reset_world",
-                   "/gazebo/reset_simulation")
 HINT = "is the sim node running? (e.g. roslaunch pybullet_sim cube_sim.launch)"
 ANSWERED_WITH_AN_ERROR = "responded with an error"  # rospy's ServiceException text when the handler raised
 LOST_SIM_WAIT = 2.0  # s a failed call looks for what became of the sim node (gone, or restarted)

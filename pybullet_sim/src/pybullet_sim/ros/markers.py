@@ -23,11 +23,11 @@ from visualization_msgs.msg import Marker
 
 from gazebo_msgs.msg import ContactsState
 
-from .config import ConfigError, SensorConfig, parse_robot_config
+from ..config import SensorConfig, parse_robot_config
+from ..errors import ConfigError
+from ..names import CONTACT_MARKERS_TOPIC, SIM_NODE
 from .shutdown import shutdown_on_signals, shutting_down
 
-TOPIC = "/pybullet_sim/contact_markers"
-SIM_NODE = "/pybullet_sim"
 COLOR = ColorRGBA(1.0, 0.55, 0.0, 1.0)  # orange: apart from the robots' red, black, white and blue
 
 
@@ -64,7 +64,7 @@ class ContactMarkers:
             raise ConfigError(f"parameter {SIM_NODE} is missing: start the robot's sim (e.g. roslaunch pybullet_sim "
                               f"cube_sim.launch rviz:=true)")
         config = parse_robot_config(rospy.get_param(SIM_NODE), where=SIM_NODE)
-        self.publisher = rospy.Publisher(TOPIC, Marker, queue_size=10)
+        self.publisher = rospy.Publisher(CONTACT_MARKERS_TOPIC, Marker, queue_size=10)
         self.last_sent: dict[int, float] = {}
         for marker_id, sensor in enumerate(s for s in config.sensors if s.type == "contact"):
             rospy.Subscriber(sensor.topic, ContactsState, self._on_contacts, callback_args=(sensor, marker_id),

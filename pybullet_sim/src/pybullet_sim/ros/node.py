@@ -15,7 +15,7 @@ Services, with Gazebo's names and types: /gazebo/{pause,unpause}_physics, reset_
 (std_srvs/Empty), /gazebo/{get,set}_physics_properties, get_world_properties, {get,set}_model_state,
 get_link_state (gazebo_msgs; see physics_properties for what PyBullet honours), and ros_control's
 <robot_namespace>/controller_manager/{switch,list,load,unload}_controller(s) (controller_manager_msgs;
-see controller_manager), the last two groups served by pybullet_sim.gazebo_services. Bad requests get
+see controller_manager), the last two groups served by pybullet_sim.ros.gazebo_services. Bad requests get
 success false (ok false) and change nothing.
 
 Private params: ~time_step (0.001 s), ~real_time_factor (1.0), ~paused (false), ~gui (false), ~seed (0),
@@ -52,16 +52,18 @@ from pybullet_sim.srv import (
     StepResponse,
 )
 
-from . import messages
-from .client import RENDER_SERVICE, RESET_SERVICE, STEP_PACKED_SERVICE, STEP_SERVICE, synchronous_publisher
-from .config import ConfigError, SensorConfig, parse_robot_config
-from .controller_manager import ControllerManager
+from ..config import SensorConfig, parse_robot_config
+from ..controller_manager import ControllerManager
+from ..errors import ConfigError, UrdfError
+from ..names import RENDER_SERVICE, RESET_SERVICE, STEP_PACKED_SERVICE, STEP_SERVICE
+from ..readings import JointStateReading
+from ..sensors import SENSOR_KINDS, pack_readings
+from ..validation import MAX_TIME_STEP, MAX_WAIT, param
+from ..world import MIN_TIME_STEP, SolverSettings, World
+from .client import synchronous_publisher
 from .gazebo_services import GazeboServices
-from .readings import JointStateReading
-from .sensors import SENSOR_KINDS, pack_readings
+from .messages import SENSOR_MESSAGES, image_msg, joint_state_msg, transform_msg
 from .shutdown import shutdown_on_signals, shutting_down
-from .validation import MAX_TIME_STEP, MAX_WAIT, param
-from .world import MIN_TIME_STEP, SolverSettings, UrdfError, World
 
 STEP_BATCH = 10  # physics steps between two looks at the clock during a lockstep call
 STEP_SLICE = 0.02  # s of wall time a lockstep call holds the World before it lets other services in
@@ -123,7 +125,7 @@ class SimNode:
         # Synchronous publishers: in lockstep each message is awaited at once (see synchronous_publisher).
         self._clock_pub = synchronous_publisher("/clock", Clock)
         self._joint_pub = synchronous_publisher(self.config.joint_states_topic, JointState)
-        sides = [SENSOR_KINDS[sensor.type].messages() for sensor in self.config.sensors]
+        sides = [SENSOR_MESSAGES[sensor.type] for sensor in self.config.sensors]
         self._sensor_pubs = [(sensor, synchronous_publisher(sensor.topic, side.type), side.to_message)
                              for sensor, side in zip(self.config.sensors, sides)]
         self._tf = tf2_ros.TransformBroadcaster()
@@ -212,7 +214,7 @@ class SimNode:
         reading = self.world.read_joint_states()
         if not (message_wanted or self._joint_pub.get_num_connections()):
             return reading, None
-        msg = messages.joint_state_msg(reading, stamp)
+        msg = joint_state_msg(reading, stamp)
         self._joint_pub.publish(msg)
         return reading, msg
 
@@ -226,7 +228,7 @@ class SimNode:
             publisher.publish(msg)
         if SENSOR_KINDS[sensor.type].broadcasts_pose and self._tf.pub_tf.get_num_connections():
             position, orientation = self.world.link_pose(sensor.link)
-            self._tf.sendTransform(messages.transform_msg(sensor.frame_id, sensor.link, position, orientation, stamp))
+            self._tf.sendTransform(transform_msg(sensor.frame_id, sensor.link, position, orientation, stamp))
         return reading, msg
 
     def _publish_clock(self, stamp, force: bool = False):
@@ -421,7 +423,7 @@ class SimNode:
                 rgb = self.world.render(request.width, request.height)
             except ValueError as error:
                 raise rospy.ServiceException(f"{RENDER_SERVICE}: {error}") from None
-            return RenderResponse(image=messages.image_msg(rgb, self.stamp()))
+            return RenderResponse(image=image_msg(rgb, self.stamp()))
 
     # -- main loop ------------------------------------------------------------------------------
     def spin(self):
