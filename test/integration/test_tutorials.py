@@ -9,8 +9,8 @@ from pathlib import Path
 from workspace_tools.paths import REPO
 from workspace_tools.processes import Processes, RosMaster
 
-TUTORIALS_PAGE = REPO / "docs" / "tutorials.md"
-PAGES = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+TUTORIALS_PAGE = REPO / "docs" / "guide" / "tutorials.md"
+PAGES = [REPO / "README.md", *sorted((REPO / "docs").rglob("*.md"))]
 VENV_COMMAND = re.compile(r"([^\s`]+) -m venv ([^&`\n]*)")
 GYM_ERA = "/tmp/gym-era"
 GYM_ERA_PYTHON = f"{GYM_ERA}/bin/python"
