@@ -12,7 +12,7 @@
 #   ./ws test [PYTEST ARGS]     set up, then the linters and every test (pytest + rostest)
 #   ./ws test --quick [PYTEST ARGS]  pytest alone: no linters, no display packages, the deep agents' only if the tests use them
 #   ./ws lint                   set up, then only the linters (ruff, mypy, catkin_lint, roslaunch-check)
-#   ./ws bench [--reps N] [--sections S,...] [--running-step ROBOT=S] [--markdown]  set up (with the deep agents), then the benchmark (--markdown: also docs/performance.md)
+#   ./ws bench [--reps N] [--sections S,...] [--running-step ROBOT=S] [--markdown]  set up (with the deep agents), then the benchmark (--markdown: also docs/reference/performance.md)
 #   ./ws python [ARGS...]       python inside the workspace environment (the venv, the devel space)
 #   ./ws exec CMD [ARGS...]     CMD inside the workspace environment
 #   ./ws sweep [cube|hopper] [seeds:=0-9] [NAME:=V1,V2 ...] [max_steps:=N] [name:=SWEEP] [resume:=true] [cluster:=ray|ADDRESS]
@@ -139,7 +139,7 @@ enter_environment() {
   export PYTHONDONTWRITEBYTECODE=1
   # numpy's OpenBLAS picks its kernels by CPU, and an AVX-512 machine's round differently in the last bit: the
   # hop cycle's small matrix products then set chaotic hopping on another course
-  # (docs/training.md, "The same seed, the same run").
+  # (docs/guide/training.md, "The same seed, the same run").
   # The Haswell kernels (AVX2 and FMA) give the same results on every machine that has AVX2.
   if grep -qw avx2 /proc/cpuinfo 2>/dev/null; then export OPENBLAS_CORETYPE="${OPENBLAS_CORETYPE:-Haswell}"; fi
   export ROBOT_RL_CLUSTER_DIR="${ROBOT_RL_CLUSTER_DIR:-$STATE/cluster}"  # ./ws cluster's node (robot_rl.cluster)

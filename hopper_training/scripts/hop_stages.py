@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The hopping controller's staged validation (docs/hopping.md), in-process on PyBullet, no ROS.
+"""The hopping controller's staged validation (docs/guide/hopping.md), in-process on PyBullet, no ROS.
 
   hop_stages.py [--stage vertical|in_place|forward|push|all] [--episodes 20] [--seed 0] [--duration 10]
                 [--speed 0.4] [--push 0.5] [--control-period 0.001] [--apex-target M] [--sim-config PATH]

@@ -1,4 +1,4 @@
-"""The catkin route, as a ROS user takes it (docs/tutorials.md): the repository as the `src` of a throwaway
+"""The catkin route, as a ROS user takes it (docs/guide/tutorials.md): the repository as the `src` of a throwaway
 catkin workspace, `catkin_make install` with the venv's python, then, in a shell where that venv is not
 active and the first python3 on PATH is not it, from the install space alone: the sim and a short
 training launched by package name, the systems test through roslaunch_checked.py (its exit code, PASS

@@ -2,7 +2,7 @@
 the tutorials run Gazebo beside the training, or a launch file with respawn="true" would): the run stops with
 one line saying whether the sim is gone or was restarted (a restarted sim starts over: time 0, the robot at
 its spawn pose), the run folder stays whole, and resume:=true continues it on the new sim.
-docs/faults.md lists these cases."""
+docs/reference/faults.md lists these cases."""
 from __future__ import annotations
 
 import json

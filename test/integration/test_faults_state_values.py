@@ -1,7 +1,7 @@
 """Absurd but finite values sent to a running sim node over ROS, each robot's sim on its own master: Gazebo's
 services refuse a value beyond the sim's bounds (pybullet_sim.validation) with success false naming the field
 and the bound, and change nothing; commands beyond a joint's limits are clamped to them, as ros_control does;
-the sim keeps answering with finite readings. docs/faults.md lists these cases."""
+the sim keeps answering with finite readings. docs/reference/faults.md lists these cases."""
 from __future__ import annotations
 
 import json

@@ -71,7 +71,7 @@ SHIPPED_RUN = "hopper_training/policies/demo"  # training seed 0's hop_in_place 
 def test_the_shipped_runs_first_episodes_repeat_to_the_last_bit(ros_master, tmp_path):
     """Its params as the config, seed 0, two episodes over ROS: every column of episodes.csv but the wall time
     as the shipped run wrote it. Fails where numpy's OpenBLAS kernels are not pinned (./ws pins them to
-    Haswell's: docs/training.md, "The same seed, the same run") on a machine whose own kernels round otherwise."""
+    Haswell's: docs/guide/training.md, "The same seed, the same run") on a machine whose own kernels round otherwise."""
     shipped = REPO / SHIPPED_RUN
     results = tmp_path / "results"
     training = ros_master.run(["roslaunch", "hopper_training", "main.launch", *launch_args(

@@ -1,10 +1,10 @@
-"""openai_ros's own task envs (MovingCubeOneDiskWalk-v0, HopperStayUp-v0) on the sims, as docs/tutorials.md
+"""openai_ros's own task envs (MovingCubeOneDiskWalk-v0, HopperStayUp-v0) on the sims, as docs/guide/tutorials.md
 runs them: run_openai_ros_envs.py with their era's gym, against a private master; openai_ros launches the
 sim from this workspace's start_world.launch files and clones nothing.
 
 openai_ros is on neither PyPI nor Debian: the tests run only when OPENAI_ROS_WS names a catkin workspace in
 which it is built. OPENAI_ROS_PYTHON names a python with gym 0.10.5 and GitPython; without it, one is made
-as docs/tutorials.md makes it (from PyPI)."""
+as docs/guide/tutorials.md makes it (from PyPI)."""
 from __future__ import annotations
 
 import json
@@ -26,7 +26,8 @@ ENVS = {"cube": ("MovingCubeOneDiskWalk-v0", "moving_cube_description", 6, 1, 0.
 pytestmark = pytest.mark.skipif(
     not OPENAI_ROS_WS,
     reason="set OPENAI_ROS_WS to a catkin workspace with The Construct's openai_ros built in it "
-           "(docs/tutorials.md): openai_ros is on neither PyPI nor Debian, and CI reaches only PyPI, Debian and npm")
+           "(docs/guide/tutorials.md): openai_ros is on neither PyPI nor Debian, and CI reaches only PyPI, Debian and "
+           "npm")
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""The documentation as a newcomer reads and pastes it: README.md, docs/*.md, pybullet_sim/README.md, CHANGELOG.md.
+"""The documentation as a newcomer reads and pastes it: README.md, docs/**/*.md, pybullet_sim/README.md, CHANGELOG.md.
 
 Every command line of their code blocks names an existing ./ws command, launch file, launch argument,
 script, option and test file; the quick ones run; their code excerpts are the code's; every relative
@@ -25,7 +25,8 @@ from workspace_tools.processes import Processes
 from workspace_tools.sweep_spec import parse_sweep
 
 README = REPO / "README.md"
-PAGES = [README, REPO / "CHANGELOG.md", REPO / "pybullet_sim" / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+PAGES = [README, REPO / "CHANGELOG.md", REPO / "pybullet_sim" / "README.md", *sorted((REPO / "docs").rglob("*.md"))]
+IMAGES = REPO / "docs" / "images"
 README_MAX_LINES = 250
 WS_COMMANDS = {"run", "help", "python", "exec", "test", "lint", "bench", "rviz", "plot", "setup", "cluster", "sweep",
                "demo"}
@@ -193,13 +194,13 @@ PROGRAMS = [(page, code) for page in PAGES for code in python_programs(page)]
 
 
 def test_the_pages_have_programs_to_run():
-    assert len(PROGRAMS) >= 2, "docs/training.md's vector env and frames snippets"
+    assert len(PROGRAMS) >= 2, "docs/guide/training.md's vector env and frames snippets"
 
 
 @pytest.mark.parametrize("page,code", PROGRAMS, ids=[f"{page_id(p)}: {c.splitlines()[0][:50]}" for p, c in PROGRAMS])
 def test_every_python_program_runs_saved_to_a_file(page, code, tmp_path):
     """Each program saved as a file and run with python, from an empty folder, as a user would; a picture it
-    writes that docs/ shows too must be that picture."""
+    writes that docs/images/ shows too must be that picture."""
     program = tmp_path / "program" / "snippet.py"
     program.parent.mkdir()
     program.write_text(code)
@@ -211,12 +212,12 @@ def test_every_python_program_runs_saved_to_a_file(page, code, tmp_path):
     assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-3000:]
     assert "Traceback" not in result.stderr, result.stderr[-3000:]
     for picture in program.parent.glob("*.png"):
-        shown = REPO / "docs" / picture.name
-        assert shown.exists(), f"{page_id(page)}: the program writes {picture.name}, which docs/ does not show"
+        shown = IMAGES / picture.name
+        assert shown.exists(), f"{page_id(page)}: the program writes {picture.name}, not in docs/images/"
         made, committed = (np.asarray(Image.open(path).convert("RGB"), dtype=int) for path in (picture, shown))
-        assert made.shape == committed.shape, f"{picture.name}: {made.shape} made, docs/ has {committed.shape}"
+        assert made.shape == committed.shape, f"{picture.name}: {made.shape} made, docs/images/: {committed.shape}"
         differing = (np.abs(made - committed).max(axis=2) > 32).mean()
-        assert differing < 0.002, f"{picture.name}: {differing:.1%} of its pixels differ from docs/{picture.name}"
+        assert differing < 0.002, f"{picture.name}: {differing:.1%} of its pixels differ from {shown}"
 
 
 def test_the_code_excerpts_are_the_code():

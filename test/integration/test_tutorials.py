@@ -1,4 +1,4 @@
-"""docs/tutorials.md's recipes as a user types them: every venv the pages make, in a shell whose first python3
+"""docs/guide/tutorials.md's recipes as a user types them: every venv the pages make, in a shell whose first python3
 is not Debian's; and the commands that run the tutorials' own training scripts, on a layout of the tutorials'
 packages of our own making (stand-ins for their entry points that find their package as theirs do), with a
 folder beside the packages that rospkg cannot parse."""
@@ -9,8 +9,8 @@ from pathlib import Path
 from workspace_tools.paths import REPO
 from workspace_tools.processes import Processes, RosMaster
 
-TUTORIALS_PAGE = REPO / "docs" / "tutorials.md"
-PAGES = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+TUTORIALS_PAGE = REPO / "docs" / "guide" / "tutorials.md"
+PAGES = [REPO / "README.md", *sorted((REPO / "docs").rglob("*.md"))]
 VENV_COMMAND = re.compile(r"([^\s`]+) -m venv ([^&`\n]*)")
 GYM_ERA = "/tmp/gym-era"
 GYM_ERA_PYTHON = f"{GYM_ERA}/bin/python"
@@ -72,7 +72,7 @@ def recipe_paragraphs() -> list[list[str]]:
     robot), without the sims' lines (terminal 1)."""
     blocks = [block for block in re.findall(r"^```\n(.*?)^```", TUTORIALS_PAGE.read_text(), re.M | re.S)
               if "start_training_v2.py" in block]
-    assert len(blocks) == 1, "docs/tutorials.md's block that runs the tutorials' training scripts"
+    assert len(blocks) == 1, "docs/guide/tutorials.md's block that runs the tutorials' training scripts"
     return [[line for line in paragraph.splitlines() if not line.startswith("./ws exec roslaunch")]
             for paragraph in blocks[0].strip().split("\n\n")]
 

@@ -64,7 +64,7 @@ def test_the_lockstep_bound_is_two_for_equal_steps_and_lower_the_wider_they_spre
     assert bench.lockstep_speedup_bound([0.001, 0.003] * 50, n=4) == pytest.approx(4 * 2.0 / (3 - 2 / 16))
 
 
-# -- ./ws bench --markdown: docs/performance.md ----------------------------------------------------
+# -- ./ws bench --markdown: docs/reference/performance.md ----------------------------------------------------
 def page(independent: list[float]) -> list[str]:
     data = report(len(independent), independent)
     data.update(machine="AMD EPYC, 2 cores, Linux 6.1, Debian 12.8, Python 3.11.2, pybullet 3.2.7",

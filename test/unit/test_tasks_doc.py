@@ -1,4 +1,4 @@
-"""docs/tasks.md is generated from the task specs and their env docstrings: it must be what its generator,
+"""docs/reference/tasks.md is generated from the task specs and their env docstrings: it must be what its generator,
 workspace_tools/scripts/write_tasks_doc.py, writes now."""
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from types import ModuleType
 
 REPO = Path(__file__).resolve().parents[2]
 GENERATOR = REPO / "workspace_tools" / "scripts" / "write_tasks_doc.py"
-PAGE = REPO / "docs" / "tasks.md"
+PAGE = REPO / "docs" / "reference" / "tasks.md"
 
 
 def load_generator() -> ModuleType:
@@ -25,9 +25,9 @@ def test_the_tasks_page_is_what_its_generator_writes():
     generator = load_generator()
     expected = generator.render(REPO)
     actual = PAGE.read_text()
-    diff = "".join(list(difflib.unified_diff(actual.splitlines(True), expected.splitlines(True), "docs/tasks.md",
-                                             "generated"))[:40])
-    assert actual == expected, f"docs/tasks.md is out of date: run `{generator.REGENERATE}`\n{diff}"
+    diff = "".join(list(difflib.unified_diff(actual.splitlines(True), expected.splitlines(True),
+                                             "docs/reference/tasks.md", "generated"))[:40])
+    assert actual == expected, f"docs/reference/tasks.md is out of date: run `{generator.REGENERATE}`\n{diff}"
 
 
 def test_the_tasks_page_has_every_task_with_its_docstring():

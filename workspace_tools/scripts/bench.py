@@ -2,7 +2,7 @@
 """./ws bench: env steps per second of both robots, over ROS in lockstep, in-process, and the
 tutorials' Gazebo-style step, on the real nodes; the scaling of vector envs; a deep agent's training
 over ROS against direct. Prints a table and writes bench_results.json; --markdown also writes the table
-as docs/performance.md (with the machine, the date and, with the lockstep section, what made lockstep
+as docs/reference/performance.md (with the machine, the date and, with the lockstep section, what made lockstep
 fast). Only the sections run are printed.
 
 Every figure is the median of --reps repetitions, each in fresh processes (a new master, a new sim
@@ -80,7 +80,7 @@ from workspace_tools.processes import Processes, RosMaster, launch_args
 
 SECTIONS = ("lockstep", "scaling", "deep", "gazebo", "training", "distributed", "sweeps")
 SWEEP_EPISODES, SWEEP_EVAL_EPISODES = 400, 5
-PERFORMANCE_PAGE = Path(__file__).resolve().parents[2] / "docs" / "performance.md"
+PERFORMANCE_PAGE = Path(__file__).resolve().parents[2] / "docs" / "reference" / "performance.md"
 SCALING_ENVS = (1, 2, 4)
 DISTRIBUTED_ENVS = (1, 2)
 RECOVERY_STEPS_BEFORE_LOSS = 50  # vector steps of the two actors before the second node is killed
@@ -798,8 +798,8 @@ LOCKSTEP_FAST = """\
 
 
 def markdown(report: dict, command: str) -> str:
-    """docs/performance.md from a report: how and where it was measured, the table (if the run measured anything
-    per robot), a note when the machine was loaded, and (with the lockstep section) what made lockstep fast."""
+    """docs/reference/performance.md from a report: how and where it was measured, the table (if the run measured
+    anything per robot), a note when the machine was loaded, and (with the lockstep section) what made lockstep fast."""
     date = datetime.datetime.fromisoformat(report["date"]).astimezone(datetime.UTC)
     reps = report["repetitions"]
     lines = ["# Performance", "", f"Written by `{command}` on {date:%Y-%m-%d %H:%M} UTC.", "",

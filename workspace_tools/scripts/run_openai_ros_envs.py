@@ -9,7 +9,7 @@ openai_ros does, and nothing in its place: a node, the `ros_ws_abspath` param, t
 `put_robot_in_world.launch` (moving_cube_description's, or legged_robots_sims') from this workspace,
 which start the sim; then gym's reset/step. It needs their era's gym and GitPython (openai_ros imports
 both), so run it with a python that has them, inside `./ws exec`, against a running master
-(docs/tutorials.md). One JSON line per episode; exit 0, or 1 (one line saying why, or openai_ros's
+(docs/guide/tutorials.md). One JSON line per episode; exit 0, or 1 (one line saying why, or openai_ros's
 traceback). Everything the env launched is ended when the script ends.
 """
 import argparse

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Write docs/tasks.md, the tasks' reference, from the registered task specs and their env modules.
+"""Write docs/reference/tasks.md, the tasks' reference, from the registered task specs and their env modules.
 
 As gymnasium generates its environment pages from the envs' docstrings, the page is generated, never
 edited: per task, its spec (env id, task name, package, config, max_episode_steps, results folder,
@@ -26,6 +26,7 @@ from robot_rl.params import Params
 from robot_rl.task import TASKS, TaskSpec, package_path
 
 REGENERATE = "./ws exec rosrun workspace_tools write_tasks_doc.py"
+PAGE = Path("docs", "reference", "tasks.md")  # the page, relative to the repository
 TRAINING_PACKAGES = (moving_cube_training, hopper_training)
 
 
@@ -35,11 +36,11 @@ def registered_tasks() -> list[TaskSpec[Any]]:
 
 
 def link(path: Path, repo: Path) -> str:
-    """`path` as a link from docs/ when it is inside the repository, else as code."""
+    """`path` as a link from the page's folder when it is inside the repository, else as code."""
     path = path.resolve()
     if not path.is_relative_to(repo):
         return f"`{path}`"
-    return f"[`{path.relative_to(repo)}`]({Path(os.path.relpath(path, repo / 'docs')).as_posix()})"
+    return f"[`{path.relative_to(repo)}`]({Path(os.path.relpath(path, repo / PAGE.parent)).as_posix()})"
 
 
 def cell(text: str) -> str:
@@ -115,7 +116,7 @@ def task_section(spec: TaskSpec[Any], repo: Path) -> list[str]:
 
 
 def render(repo: Path) -> str:
-    """The whole page; `repo` is the repository root (links are relative to its docs/)."""
+    """The whole page; `repo` is the repository root (links are relative to the page's folder)."""
     repo = repo.resolve()
     tasks = registered_tasks()
     lines = [
@@ -141,11 +142,12 @@ def render(repo: Path) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    default = package_path("workspace_tools").parent / "docs" / "tasks.md"
+    repo = package_path("workspace_tools").parent
+    default = repo / PAGE
     parser.add_argument("--output", type=Path, default=default, help=f"the page to write (default: {default})")
     parser.add_argument("--check", action="store_true", help="only compare; exit 1 when the page differs")
     args = parser.parse_args(argv)
-    page = render(args.output.resolve().parent.parent)
+    page = render(repo)
     current = args.output.read_text() if args.output.is_file() else None
     if args.check:
         if current != page:

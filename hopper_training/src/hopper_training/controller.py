@@ -138,7 +138,7 @@ class LegModel:
 
 @dataclass(frozen=True)
 class HopGains:
-    """The controller's settings; each value's reason in docs/hopping.md."""
+    """The controller's settings; each value's reason in docs/guide/hopping.md."""
 
     pid_p: float = 10.0              # the joints' position PID (hopper_sim.yaml), to turn torques into targets
     pid_d: float = 0.5

@@ -1,9 +1,10 @@
 """The hopping controller as a policy of the monoped's env: `evaluate.py --policy controller`.
 
 The env runs in action_mode targets (Box(3): start_pose + action * target_range) with a running_step of
-CONTROL_PERIOD, since the controller needs a command every 1-5 ms of sim time (docs/hopping.md: at 20 ms,
-the env's default, it falls). Each step it reads the env's latest readings (not the observation: it needs
-the odometry's velocity), runs HopController and turns its three targets into the action.
+CONTROL_PERIOD, since the controller needs a command every 1-5 ms of sim time
+(docs/research/2026-11-25-hop-stages.md: at 20 ms, the env's default, it falls). Each step it reads the env's latest
+readings (not the observation: it needs the odometry's velocity), runs HopController and turns its three targets
+into the action.
 """
 from __future__ import annotations
 

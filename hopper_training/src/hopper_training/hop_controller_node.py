@@ -7,8 +7,8 @@ Subscribes to the monoped's sensors as the tutorial named them (/monoped/joint_s
 every sensor and publishes the three targets. A sim reset (time going back) restarts the controller.
 
 The sim must run freely (launched with paused:=false, or unpaused with /gazebo/unpause_physics): the
-controller needs a command every 1-5 ms of sim time (docs/hopping.md), so a real_time_factor below 1
-gives a Python node the wall time to keep up (hop_controller.launch: 0.25).
+controller needs a command every 1-5 ms of sim time (docs/research/2026-11-25-hop-stages.md), so a
+real_time_factor below 1 gives a Python node the wall time to keep up (hop_controller.launch: 0.25).
 
 Private params: ~speed_x, ~speed_y (m/s commanded along the body's heading and to its left, default 0),
 ~control_period (s of sim time, default 0.001), ~apex_target (m, default 0: a fixed thrust).

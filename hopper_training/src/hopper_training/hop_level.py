@@ -1,9 +1,9 @@
 """MonopedHopLevel-v0: the monoped hops in place, one decision per hop (issue 27, "learned hopping, tabular").
 
-Per-step actions every 20 ms cannot hop (the controller needs a command every 1 ms, docs/hopping.md), so
-one env step here is one hop: from a lift-off to the next. In between, the hand-written hop cycle of
-controller.py runs every control period (running_step, 1 ms) through the backend, in lockstep as every
-task's step.
+Per-step actions every 20 ms cannot hop (the controller needs a command every 1 ms,
+docs/research/2026-11-25-hop-stages.md), so one env step here is one hop: from a lift-off to the next. In
+between, the hand-written hop cycle of controller.py runs every control period (running_step, 1 ms) through
+the backend, in lockstep as every task's step.
 Hand-written (controller.py): the phase machine, the landing crouch and the thrust, the stance attitude (hip
     torques through the centre of mass, PD on the tilt), the flight swing and the leg's inverse kinematics.
 Learned (the action, once per hop): where the foot lands, as an offset along the velocity. The controller's

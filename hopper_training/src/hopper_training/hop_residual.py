@@ -9,7 +9,7 @@ Learned (the action, once per hop): residual_range x action (rad) added to the h
     controller's flight inverse kinematics solve for (HopController.hip_offset), held from this lift-off to the
     next. It is where the foot lands, in the body's frame: haa sideways, hfe fore and aft.
 Hand-written: everything else of the hop cycle (phase machine, thrust, stance attitude, swing), as on
-    hop_in_place (docs/hop_level.md).
+    hop_in_place (docs/guide/hop_in_place.md).
 
 Action: Box(2,) float32 in [-1, 1]: the haa and hfe residuals, in units of residual_range. Zero is the
     controller alone (with its placement law off).

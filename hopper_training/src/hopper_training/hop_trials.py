@@ -1,4 +1,4 @@
-"""Hopping trials of the controller on an in-process World (no ROS): the staged validation of docs/hopping.md.
+"""Hopping trials of the controller on an in-process World (no ROS): the staged validation of docs/guide/hopping.md.
 
 A trial spawns the monoped as its sim config says (the foot 5 cm above the ground, the leg straight),
 optionally leaned by a tilt or on the vertical slider (`base_constraint: vertical`), runs

@@ -47,7 +47,7 @@ class TiltStateKey:
     leans (the largest of abs(roll) and abs(pitch), in decades) and how fast (the largest of the two tilt
     rates, in decades), the knee (bent, slightly bent, straight) and whether the foot touches the ground:
     2 x 7 x 8 x 3 x 2 = 672 keys. Values beyond the outer edges land in the edge bins. The sign of roll is
-    left out: with it (1344 keys) 1000 episodes learned far less (docs/results.md)."""
+    left out: with it (1344 keys) 1000 episodes learned far less (docs/research/2026-11-25-monoped-actions.md)."""
 
     def __init__(self, params: MonopedParams):
         self.discretiser = Discretiser.from_edges([[0.0], TILT_EDGES, RATE_EDGES, KNEE_EDGES, [0.5]])

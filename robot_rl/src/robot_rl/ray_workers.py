@@ -9,12 +9,12 @@ equals the same run over pipe workers. The actors are spread over the cluster's 
 CPU each; each is a process of its own whose methods run on its main thread (a sync actor), which matters:
 its master and sim node get SIGTERM when that thread ends (PR_SET_PDEATHSIG). Unlike pipe workers, they run
 in the normal scheduling class: Ray's threads hand each call to the main thread, and a SCHED_BATCH main thread
-waits for its turn at every hand-over (Ray actors at N = 2 reached 0.44-0.47x of pipe workers' env steps/s
-with it, 0.65-0.69x without, on a loaded 2-core machine). Each step is a plain actor call: a Ray Compiled Graph
-over the actors was no faster within one node and 5-10x slower to an actor on another node, nor were threaded or
-async actors faster (workspace_tools/scripts/ray_call_bench.py; docs/distributed.md). Each call costs about as much
-CPU as the env step it carries (0.85-1.05 ms on a 2-core machine), so on one machine Ray actors stay well below pipe
-workers whatever the scheduling: they are for envs spread over machines.
+waits for its turn at every hand-over (Ray actors at N = 2 reached 0.44-0.47x of pipe workers' env steps/s with it,
+0.65-0.69x without, on a loaded 2-core machine). Each step is a plain actor call: a Ray Compiled Graph over the
+actors was no faster within one node and 5-10x slower to an actor on another node, nor were threaded or async actors
+faster (workspace_tools/scripts/ray_call_bench.py; docs/research/2026-11-26-ray-actors.md). Each call costs about as
+much CPU as the env step it carries (0.85-1.05 ms on a 2-core machine), so on one machine Ray actors stay well below
+pipe workers whatever the scheduling: they are for envs spread over machines.
 
 An actor's logs (its master's and sim node's, the traceback of a failure) stay on its node, in a temporary
 folder the errors name with the node's address; close() removes them unless a worker failed. Every wait is

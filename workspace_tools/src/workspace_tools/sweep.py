@@ -28,7 +28,7 @@ starts anew. So a failed trial (Tune retries it up to max_failures times) and an
 (`resume:=true name:=SWEEP`, which runs the trials not done) go on where their runs' checkpoints are.
 One line per finished trial, with an ETA. Ray runs on this machine (a private temp dir, no dashboard, no
 usage statistics; Ray 2.60 listens on every interface whatever address it is given, and a local instance
-has its token authentication on, its default: docs/distributed.md) unless cluster:=ADDRESS names a
+has its token authentication on, its default: docs/guide/distributed.md) unless cluster:=ADDRESS names a
 running cluster. Every ROS master and sim node of a trial is on 127.0.0.1.
 Exit codes: 0 every trial done, 1 a trial failed (the table has the others), 2 bad arguments, 130
 interrupted.
