@@ -23,7 +23,7 @@ contact and the knee's rate:
   hips solving for the body's tilt and yaw (the hips cannot hold the yaw of a point foot: it drifts).
   Hooks for the hop_in_place task (envs/hop_in_place.py): `placement_offset` (m, world x, y) is added to the foot
   placement, and HopGains.speed_feedback False leaves out k_v (v - v_d) and b (the neutral point remains).
-  For the residual tasks (envs/residual.py): `hip_offset` (rad, haa and hfe) is added to the flight's hip
+  For the residual tasks (envs/residual_in_place.py): `hip_offset` (rad, haa and hfe) is added to the flight's hip
   targets that the inverse kinematics solved for, before the swing gain.
 
 The leg's kinematics and masses (LegModel) are hopper_description/urdf/monoped.urdf's; test_hop_controller.py

@@ -27,7 +27,7 @@ STANCE_PHASES = (Phase.LOADING, Phase.COMPRESSION, Phase.THRUST, Phase.UNLOADING
 
 @dataclass(frozen=True, kw_only=True)
 class HopCycleParams(MonopedParams):
-    """The params of the tasks whose step is one hop of the controller's cycle (hop_in_place.py, residual.py)."""
+    """The params of the tasks whose step is one hop of the controller's cycle (hop_in_place, the residual tasks)."""
 
     speed_weight: float = param(low=0.0, doc="reward per hop: minus this x the speed error (m/s) at the decision point")
     max_hop_s: float = param(low=0.1, high=5.0, doc="s: a step ends after this without a lift-off")
