@@ -136,7 +136,7 @@ class HopInPlaceStateKey:
     def key(self, observation: np.ndarray) -> str:
         return self.discretiser.key([float(observation[2]), float(observation[3])])
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:  # the format keeps its old name: checkpoints (the shipped one) record it
         return {"format": "hopper_training.hop_level_state_key/2", "discretiser": self.discretiser.to_dict()}
 
 
