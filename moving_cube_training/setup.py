@@ -2,4 +2,5 @@
 from catkin_pkg.python_setup import generate_distutils_setup
 from setuptools import setup
 
-setup(**generate_distutils_setup(packages=["moving_cube_training"], package_dir={"": "src"}))
+setup(**generate_distutils_setup(packages=["moving_cube_training", "moving_cube_training.envs"],
+                                 package_dir={"": "src"}))

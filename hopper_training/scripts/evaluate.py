@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Evaluate a trained monoped run (greedy vs random policy): robot_rl.evaluation for the monoped's tasks.
 
-  rosrun hopper_training evaluate.py --qtable training_results/monoped/latest [--episodes 20] [--horizon-s 10]
+  rosrun hopper_training evaluate.py --qtable training_results/stay_up/latest [--episodes 20] [--horizon-s 10]
   rosrun hopper_training evaluate.py --policy controller [--task hop] [--speed 0.4]   # the hopping controller
   rosrun hopper_training evaluate.py --policy do_nothing --task hop_in_place          # the hop-level baselines:
   rosrun hopper_training evaluate.py --policy random --task hop_in_place              # (controller too)
@@ -10,7 +10,7 @@
 
 A run's metrics: mean_return, mean_time_upright_s, upright_whole_horizon_rate and mean_x_distance
 (m along +x). See robot_rl/src/robot_rl/evaluation.py for every option.
-Hand-written policies (--policy): controller, the hopping controller (hopper_training.controller_policy;
+Hand-written policies (--policy): controller, the hopping controller (hopper_training.controller.policy;
 on --task hop_in_place and the residual tasks its neutral point and speed feedback switched on under the
 do-nothing action); do_nothing, hop_in_place's do-nothing action every hop, or no residual on the residual
 tasks (residual_in_place, residual_forward: commanded their target_speed); random, a uniformly random action every step
@@ -18,35 +18,9 @@ tasks (residual_in_place, residual_forward: commanded their target_speed); rando
 """
 import sys
 
-import numpy as np
-
-from hopper_training import TASKS, controller_policy, hop_level, hop_residual
-from robot_rl.evaluation import ScriptedPolicy, main, random_actions
-
-
-def controller_params(task, params):
-    if task is hop_level.HOP_LEVEL:
-        return hop_level.controller_params(params)
-    if task in hop_residual.RESIDUAL_TASKS:
-        return hop_residual.controller_params(params)
-    return controller_policy.controller_params(task, params)
-
-
-def do_nothing(env, speed):
-    if env.unwrapped.task in hop_residual.RESIDUAL_TASKS:
-        return hop_residual.zero_residual(env, speed)
-    return hop_level.do_nothing_policy(env, speed)
-
-
-def controller(env, speed):
-    if env.unwrapped.task is hop_level.HOP_LEVEL or env.unwrapped.task in hop_residual.RESIDUAL_TASKS:
-        return do_nothing(env, speed)
-    return controller_policy.ControllerPolicy(env, speed)
-
+from hopper_training import TASKS
+from hopper_training.scripted_policies import POLICIES
+from robot_rl.evaluation import main
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:], TASKS, "evaluate_monoped", {
-        "controller": ScriptedPolicy(controller_params, controller),
-        "do_nothing": ScriptedPolicy(lambda task, params: params, do_nothing),
-        "random": ScriptedPolicy(lambda task, params: params,
-                                 lambda env, speed: random_actions(env.action_space, np.random.default_rng(0)))}))
+    sys.exit(main(sys.argv[1:], TASKS, "evaluate_monoped", POLICIES))

@@ -15,9 +15,9 @@ import json
 import sys
 from pathlib import Path
 
-from hopper_training.controller import HopGains
-from hopper_training.hop_trials import StageSettings, stage_free, stage_vertical
-from hopper_training.monoped_env import MONOPED
+from hopper_training.controller.core import HopGains
+from hopper_training.controller.trials import StageSettings, stage_free, stage_vertical
+from hopper_training.robot import MONOPED
 
 STAGES = ("vertical", "in_place", "forward", "push")
 

@@ -11,7 +11,7 @@ import imageio_ffmpeg
 import pytest
 import yaml
 
-from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from workspace_tools.paths import REPO, ROSTESTS
 from workspace_tools.processes import Processes, RosMaster, launch_args, wait_for
 

@@ -19,8 +19,9 @@ import pytest
 import rosgraph
 import yaml
 
-from hopper_training.monoped_env import STAY_UP
-from moving_cube_training.one_disk_walk import MOVING_CUBE, ONE_DISK_WALK
+from hopper_training.envs.stay_up import STAY_UP
+from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
+from moving_cube_training.robot import MOVING_CUBE
 from workspace_tools.launch_reaper import descendants
 from workspace_tools.paths import PROGRAMS, REPO
 from workspace_tools.processes import Processes, RosMaster, free_port, processes_using, wait_for
@@ -344,8 +345,8 @@ def test_resume_with_nothing_to_resume_gives_one_line(master, tmp_path, previous
 def test_resume_of_another_task_is_refused(master, trained_run, tmp_path):
     """The hopper's stay-up training resuming a cube run: its task is named in the checkpoint."""
     results, _ = copy_run(trained_run, tmp_path)
-    (results / "monoped").mkdir()
-    (results / "monoped" / "latest").symlink_to(results / "moving_cube" / "latest")
+    (results / "stay_up").mkdir()
+    (results / "stay_up" / "latest").symlink_to(results / "moving_cube" / "latest")
     before = run_files(results)
     result = master.run([*HOPPER_TRAINING, f"results_dir:={results}", "resume:=true"], timeout=120)
     assert result.returncode == 1

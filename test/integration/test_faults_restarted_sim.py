@@ -18,7 +18,7 @@ import pytest
 import rosgraph
 import yaml
 
-from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from workspace_tools.processes import RosMaster, wait_for
 from workspace_tools.training_launch import write_cube_training_launch
 

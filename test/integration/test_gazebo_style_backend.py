@@ -11,7 +11,7 @@ REPO = Path(__file__).resolve().parents[2]
 CLIENT = """
 import json
 import rospy
-from hopper_training.monoped_env import STAY_UP
+from hopper_training.envs.stay_up import STAY_UP
 from robot_rl.backends import GazeboStyleBackend
 from robot_rl.task import make_env
 

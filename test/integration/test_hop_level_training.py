@@ -7,7 +7,7 @@ import time
 import pytest
 import yaml
 
-from hopper_training.hop_level import HOP_LEVEL
+from hopper_training.envs.hop_in_place import HOP_IN_PLACE
 from workspace_tools.paths import REPO
 from workspace_tools.processes import launch_args
 
@@ -17,7 +17,7 @@ NEPISODES, NSTEPS, RUNNING_STEP = 3, 500, 0.001  # nsteps x running_step: each e
 
 
 def test_three_hop_level_episodes_over_ros_then_evaluate(ros_master, tmp_path):
-    config = yaml.safe_load(HOP_LEVEL.config_path.read_text())
+    config = yaml.safe_load(HOP_IN_PLACE.config_path.read_text())
     assert config["running_step"] == RUNNING_STEP
     config["nsteps"] = NSTEPS
     config_file = tmp_path / "hop_level.yaml"
@@ -33,7 +33,7 @@ def test_three_hop_level_episodes_over_ros_then_evaluate(ros_master, tmp_path):
     training_time = time.monotonic() - started
     assert f"Training complete: {NEPISODES} episodes" in log, log[-4000:]
 
-    run = results / "monoped_hop_level" / "latest"
+    run = results / "hop_in_place" / "latest"
     with open(run / "episodes.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     assert [int(row["episode"]) for row in rows] == [1, 2, 3]
@@ -47,7 +47,7 @@ def test_three_hop_level_episodes_over_ros_then_evaluate(ros_master, tmp_path):
     # the ledger's sim time is the sum of the episodes' sim time (not steps x running_step)
     assert float(rows[-1]["sim_time"]) == pytest.approx(sum(float(row["time_upright_s"]) for row in rows))
     qtable = json.loads((run / "qtable.json").read_text())
-    assert qtable["task"] == "MonopedHopLevel-v0" and qtable["episode"] == NEPISODES
+    assert qtable["task"] == "MonopedHopInPlace-v0" and qtable["episode"] == NEPISODES
     assert qtable["state_key"]["format"] == "hopper_training.hop_level_state_key/2"
     assert {action for _, action, _ in qtable["qlearn"]["q"]} <= set(range(6)) and qtable["qlearn"]["q"]
     summary = json.loads((run / "summary.json").read_text())
@@ -57,7 +57,7 @@ def test_three_hop_level_episodes_over_ros_then_evaluate(ros_master, tmp_path):
                                 "--horizon-s", "0.3"], timeout=EVALUATE_TIMEOUT)
     assert evaluation.returncode == 0, evaluation.stdout[-2000:] + evaluation.stderr[-2000:]
     report = json.loads(evaluation.stdout.strip().splitlines()[-1])
-    assert (report["task"], report["episodes"], report["horizon_s"]) == ("MonopedHopLevel-v0", 2, pytest.approx(0.3))
+    assert (report["task"], report["episodes"], report["horizon_s"]) == ("MonopedHopInPlace-v0", 2, pytest.approx(0.3))
     for policy in ("greedy", "random"):
         result = report[policy]
         assert 0.0 < result["mean_time_upright_s"] <= 0.3 + 1e-9
@@ -82,4 +82,4 @@ def test_the_shipped_runs_first_episodes_repeat_to_the_last_bit(ros_master, tmp_
     def rows(path):
         with open(path, newline="") as f:
             return [{key: value for key, value in row.items() if key != "wall_time"} for row in csv.DictReader(f)]
-    assert rows(results / "monoped_hop_level" / "latest" / "episodes.csv") == rows(shipped / "episodes.csv")[:2]
+    assert rows(results / "hop_in_place" / "latest" / "episodes.csv") == rows(shipped / "episodes.csv")[:2]

@@ -8,7 +8,7 @@ import time
 import pytest
 import yaml
 
-from hopper_training.monoped_env import STAY_UP
+from hopper_training.envs.stay_up import STAY_UP
 from workspace_tools.paths import PROGRAMS
 from workspace_tools.processes import launch_args, stop, wait_for
 
@@ -58,7 +58,7 @@ def test_three_episodes_over_ros_then_evaluate(ros_master, tmp_path):
     # roslaunch exits 0 even when the required training node fails (seen with exit code 1): check its log.
     assert "Training complete: 3 episodes" in log, log[-4000:]
 
-    run = results / "monoped" / "latest"
+    run = results / "stay_up" / "latest"
     assert run.is_symlink() and run.is_dir()
     with open(run / "episodes.csv", newline="") as f:
         rows = list(csv.reader(f))

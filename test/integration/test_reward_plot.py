@@ -9,7 +9,7 @@ import numpy as np
 import yaml
 from PIL import Image, ImageGrab
 
-from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from workspace_tools.processes import launch_args, wait_for
 
 

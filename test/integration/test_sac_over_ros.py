@@ -6,8 +6,8 @@ import json
 
 import yaml
 
-from hopper_training.hop_residual import RESIDUAL_FORWARD
-from hopper_training.monoped_env import STAY_UP
+from hopper_training.envs.residual_forward import RESIDUAL_FORWARD
+from hopper_training.envs.stay_up import STAY_UP
 from robot_rl.agents import find_agent
 from workspace_tools.processes import launch_args
 
@@ -33,7 +33,7 @@ def _train(ros_master, tmp_path, nepisodes, **more):
         results_dir=tmp_path / "results", video="false", **more)], timeout=TRAINING_TIMEOUT)
     log = result.stdout + result.stderr
     assert result.returncode == 0 and f"Training complete: {nepisodes} episodes" in log, log[-4000:]
-    return tmp_path / "results" / "monoped-sac" / "sac", log
+    return tmp_path / "results" / "stay_up-sac" / "sac", log
 
 
 def test_a_short_sac_run_writes_every_results_file_and_resumes(ros_master, tmp_path):
@@ -67,7 +67,7 @@ def test_sac_trains_the_residual_task_over_ros_one_hop_a_step(ros_master, tmp_pa
         results_dir=tmp_path / "results", video="false")], timeout=TRAINING_TIMEOUT)
     log = result.stdout + result.stderr
     assert result.returncode == 0 and "Training complete: 3 episodes" in log, log[-4000:]
-    run = tmp_path / "results" / "monoped_residual_forward-sac" / "sac"
+    run = tmp_path / "results" / "residual_forward-sac" / "sac"
     with open(run / "episodes.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == 3

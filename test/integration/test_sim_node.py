@@ -3,7 +3,7 @@ import json
 
 import yaml
 
-from moving_cube_training.one_disk_walk import MOVING_CUBE
+from moving_cube_training.robot import MOVING_CUBE
 from workspace_tools.paths import PROGRAMS, REPO
 from workspace_tools.processes import RosMaster, launch_args
 

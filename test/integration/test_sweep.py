@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from workspace_tools.paths import REPO
 from workspace_tools.processes import RosMaster, launch_args, wait_for
 from workspace_tools.ray_cluster import LoopbackCluster

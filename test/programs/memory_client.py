@@ -4,7 +4,7 @@ import json
 import sys
 from pathlib import Path
 
-from moving_cube_training.one_disk_walk import MOVING_CUBE, WHEEL_CONTROLLER
+from moving_cube_training.robot import MOVING_CUBE, WHEEL_CONTROLLER
 from robot_rl.backends import RosBackend
 
 

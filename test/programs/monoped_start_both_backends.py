@@ -6,7 +6,7 @@ import gymnasium
 import numpy as np
 
 import hopper_training  # noqa: F401 (registers the tasks)
-from hopper_training.monoped_env import STAY_UP
+from hopper_training.envs.stay_up import STAY_UP
 
 ACTIONS = [4, 4, 6, 5, 6, 0, 3, 6] * 3 + [6]
 

@@ -5,7 +5,7 @@ started. It does nothing on Ctrl-C itself, as a user's script would not: the tes
 to the process group leaves no process behind."""
 import json
 
-from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from robot_rl.vector import make_vector_env
 
 

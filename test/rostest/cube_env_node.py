@@ -16,7 +16,8 @@ import numpy as np
 import rospy
 from gymnasium.utils.env_checker import check_env
 
-from moving_cube_training.one_disk_walk import MOVING_CUBE, ONE_DISK_WALK
+from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
+from moving_cube_training.robot import MOVING_CUBE
 
 SIM_SEED = 0  # cube_sim.launch's default seed
 ACTIONS = [int(a) for a in np.random.default_rng(7).integers(0, 5, size=30)]

@@ -8,7 +8,7 @@ import numpy as np
 import rospy
 from gymnasium.utils.env_checker import check_env
 
-from hopper_training.monoped_env import STAY_UP
+from hopper_training.envs.stay_up import STAY_UP
 
 ACTIONS = [int(a) for a in np.random.default_rng(7).integers(0, 6, size=200)]
 

@@ -5,7 +5,7 @@ import tempfile
 import pytest
 import yaml
 
-from moving_cube_training.one_disk_walk import MOVING_CUBE
+from moving_cube_training.robot import MOVING_CUBE
 
 _CUBE_PARAMS = yaml.safe_load(MOVING_CUBE.sim_config_path.read_text())
 _CUBE_URDF_TEXT = MOVING_CUBE.urdf_path.read_text()

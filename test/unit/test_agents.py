@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from robot_rl.agents import AGENTS, agent_of, checkpoint_of, find_agent, main
 from robot_rl.params import ParamError, Params
 from robot_rl.results import DEEP_CHECKPOINT, QTABLE_CHECKPOINT

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from hopper_training.hop_level import HOP_LEVEL
-from hopper_training.monoped_env import STAY_UP
-from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from hopper_training.envs.hop_in_place import HOP_IN_PLACE as HOP_LEVEL
+from hopper_training.envs.stay_up import STAY_UP
+from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from robot_rl.params import ParamError
 
 COMPARE = Path(__file__).resolve().parents[2] / "workspace_tools" / "scripts" / "compare_agents.py"

@@ -12,14 +12,9 @@ import pytest
 import yaml
 from tf.transformations import quaternion_from_euler
 
-from moving_cube_training.one_disk_walk import (
-    MOVING_CUBE,
-    ODOMETRY_SENSOR,
-    ONE_DISK_WALK,
-    WHEEL_CONTROLLER,
-    MovingCubeOneDiskWalkEnv,
-)
+from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK, MovingCubeOneDiskWalkEnv
 from moving_cube_training.params import CubeParams
+from moving_cube_training.robot import MOVING_CUBE, ODOMETRY_SENSOR, WHEEL_CONTROLLER
 from moving_cube_training.state import CubeStateKey
 from pybullet_sim.readings import JointStateReading, OdometryReading
 from robot_rl.backends import Readings
@@ -258,7 +253,7 @@ def test_action_outside_the_space_raises_value_error(action):
 
 def test_registered_env_uses_this_class_with_the_yaml_nsteps_as_its_time_limit():
     spec = gymnasium.spec(ONE_DISK_WALK.env_id)
-    assert spec.entry_point == "moving_cube_training.one_disk_walk:MovingCubeOneDiskWalkEnv"
+    assert spec.entry_point == "moving_cube_training.envs.one_disk_walk:MovingCubeOneDiskWalkEnv"
     assert spec.max_episode_steps == ONE_DISK_WALK.max_episode_steps == ONE_DISK_WALK.default_params().nsteps
 
 

@@ -15,7 +15,7 @@ from stable_baselines3.common.vec_env import VecCheckNan, VecMonitor
 
 from hopper_training import TASKS as HOPPER_TASKS
 from moving_cube_training import TASKS as CUBE_TASKS
-from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from robot_rl.agents import find_agent
 from robot_rl.deep import DeepPolicy, DeepTrainer, EpisodeSchedule, build_model, make_vec_env
 from robot_rl.evaluation import TrainedRun, evaluate

@@ -8,7 +8,7 @@ import pybullet as p
 import pytest
 
 from hopper_training import TASKS
-from hopper_training.controller import (
+from hopper_training.controller.core import (
     HopController,
     HopGains,
     HopInput,
@@ -18,9 +18,9 @@ from hopper_training.controller import (
     hips_for_foot,
     level_rotation,
 )
-from hopper_training.controller_policy import ControllerPolicy, controller_params
-from hopper_training.hop_trials import lean, load_sim_config, make_world, run_trial
-from hopper_training.monoped_env import MONOPED
+from hopper_training.controller.policy import ControllerPolicy, controller_params
+from hopper_training.controller.trials import lean, load_sim_config, make_world, run_trial
+from hopper_training.robot import MONOPED
 from pybullet_sim.config import parse_robot_config
 from pybullet_sim.errors import ConfigError
 from robot_rl import evaluation

@@ -1,4 +1,4 @@
-"""Unit tests of the monoped's hop-level task (MonopedHopLevel-v0) on the direct backend (no ROS master): a step
+"""Unit tests of the monoped's hop-level task (MonopedHopInPlace-v0) on the direct backend (no ROS master): a step
 ends at the next decision point (lift-off), the actions' offsets and thrusts, the state key's bins, the
 truncation at the horizon, gymnasium's env checker; and the controller's hooks for it."""
 import dataclasses
@@ -11,13 +11,13 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 from hopper_training import TASKS
-from hopper_training.controller import HopController, HopGains, HopInput, Phase
-from hopper_training.hop_level import (
-    HOP_LEVEL,
+from hopper_training.controller.core import HopController, HopGains, HopInput, Phase
+from hopper_training.envs.hop_cycle import controller_params
+from hopper_training.envs.hop_in_place import (
+    HOP_IN_PLACE,
     SPEED_EDGES,
-    HopLevelStateKey,
+    HopInPlaceStateKey,
     action_meaning,
-    controller_params,
     do_nothing_action,
     offsets,
     thrust_knees,
@@ -26,12 +26,12 @@ from robot_rl import evaluation
 from robot_rl.params import ParamError
 from robot_rl.task import make_env
 
-PARAMS = HOP_LEVEL.default_params()
+PARAMS = HOP_IN_PLACE.default_params()
 
 
 @pytest.fixture
 def env():
-    made = make_env(HOP_LEVEL, params=PARAMS, backend="direct", seed=0)
+    made = make_env(HOP_IN_PLACE, params=PARAMS, backend="direct", seed=0)
     yield made
     made.close()
 
@@ -55,7 +55,7 @@ def test_params_without_a_do_nothing_action_are_refused():
 
 
 def test_the_state_key_bins_speed_and_the_sign_of_the_lean_along_the_velocity():
-    key = HopLevelStateKey(PARAMS)
+    key = HopInPlaceStateKey(PARAMS)
 
     def of(speed, lean):
         return key.key(np.array([0.0, 0.0, speed, lean, 0.0, 0.0, 0.9, 0.3], dtype=np.float32))
@@ -110,7 +110,7 @@ def test_the_action_sets_the_placement_offset_along_the_velocity_and_the_thrust(
 
 def test_a_thrust_action_sets_the_next_stances_thrust():
     params = PARAMS.with_changes("test", thrust_min=-0.2, thrust_levels=2)
-    made = make_env(HOP_LEVEL, params=params, backend="direct", seed=0)
+    made = make_env(HOP_IN_PLACE, params=params, backend="direct", seed=0)
     try:
         made.reset(seed=2)
         made.step(do_nothing_action(params))
@@ -123,7 +123,7 @@ def test_a_thrust_action_sets_the_next_stances_thrust():
 
 
 def test_the_episode_is_truncated_at_the_horizon_in_sim_time():
-    made = make_env(HOP_LEVEL, params=controller_params(PARAMS), backend="direct", seed=0, max_episode_steps=600)
+    made = make_env(HOP_IN_PLACE, params=controller_params(PARAMS), backend="direct", seed=0, max_episode_steps=600)
     try:
         made.reset(seed=3)
         times, truncated = [], False
@@ -175,7 +175,7 @@ def evaluate_json(capsys, *argv: str) -> dict:
 def test_evaluate_plays_one_constant_action_every_hop(capsys):
     report = evaluate_json(capsys, "--policy", "constant", "--action", "2", "--task", "hop_in_place",
                            "--episodes", "1", "--horizon-s", "2")
-    assert report["policy"] == "constant" and report["action"] == 2 and report["task"] == HOP_LEVEL.env_id
+    assert report["policy"] == "constant" and report["action"] == 2 and report["task"] == HOP_IN_PLACE.env_id
     assert report["constant"]["mean_hops"] >= 5 and report["constant"]["upright_whole_horizon_rate"] == 1.0
     assert action_meaning(PARAMS, 2) == pytest.approx((0.02, 0.0)), "action 2: the foot 2 cm ahead"
 
@@ -184,7 +184,7 @@ def test_evaluate_plays_one_constant_action_every_hop(capsys):
     (["--policy", "constant", "--task", "hop_in_place"], "--action N is needed for --policy constant, and only for it"),
     (["--qtable", "some_run", "--action", "1"], "--action N is needed for --policy constant, and only for it"),
     (["--policy", "constant", "--action", "6", "--task", "hop_in_place"],
-     "--action must be from 0 to 5 (MonopedHopLevel-v0's Discrete(6)), got 6"),
+     "--action must be from 0 to 5 (MonopedHopInPlace-v0's Discrete(6)), got 6"),
     (["--policy", "constant", "--action", "0", "--task", "residual_forward"],
      "--policy constant needs Discrete actions; MonopedResidualForward-v0's are Box("),
 ])

@@ -5,8 +5,9 @@ import dataclasses
 import pytest
 from test_monoped import readings
 
+from hopper_training.envs.base import monoped_metrics
+from hopper_training.envs.stay_up import STAY_UP, MonopedEnv
 from hopper_training.hop_metrics import MIN_FLIGHT_S, HopTracker, fit_flight
-from hopper_training.monoped_env import STAY_UP, MonopedEnv, monoped_metrics
 from robot_rl.task import Episode
 
 from fake_backend import FakeBackend

@@ -9,9 +9,12 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from hopper_training.controller import HopController, HopGains, HopInput
-from hopper_training.hop_residual import RESIDUAL_FORWARD, RESIDUAL_IN_PLACE, controller_params, zero_residual
-from hopper_training.monoped_env import base_rpy
+from hopper_training.controller.core import HopController, HopGains, HopInput
+from hopper_training.envs.hop_cycle import controller_params
+from hopper_training.envs.residual_forward import RESIDUAL_FORWARD
+from hopper_training.envs.residual_in_place import RESIDUAL_IN_PLACE
+from hopper_training.robot import base_rpy
+from hopper_training.scripted_policies import zero_residual
 from robot_rl.task import make_env
 
 PARAMS = RESIDUAL_IN_PLACE.default_params()

@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 from tf.transformations import euler_from_quaternion, quaternion_from_euler
 
-from hopper_training.hop import HOP, HopParams, MonopedHopEnv
-from hopper_training.monoped_env import CONTROLLERS, JOINTS, MONOPED, STAY_UP, MonopedEnv
+from hopper_training.envs.hop import HOP, HopParams, MonopedHopEnv
+from hopper_training.envs.stay_up import STAY_UP, MonopedEnv
 from hopper_training.params import MonopedParams
+from hopper_training.robot import CONTROLLERS, JOINTS, MONOPED
 from hopper_training.state import TiltStateKey, TutorialStateKey, monoped_state_key
 from pybullet_sim.readings import ContactPoint, ContactReading, ImuReading, JointStateReading, OdometryReading
 from robot_rl.backends import DirectBackend, Readings

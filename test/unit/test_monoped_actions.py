@@ -11,8 +11,10 @@ import yaml
 from gymnasium.utils.env_checker import check_env
 from test_monoped import readings
 
-from hopper_training.hop import HOP
-from hopper_training.monoped_env import CONTROLLERS, HOLD, MONOPED, STAY_UP, MonopedEnv
+from hopper_training.actions import HOLD
+from hopper_training.envs.hop import HOP
+from hopper_training.envs.stay_up import STAY_UP, MonopedEnv
+from hopper_training.robot import CONTROLLERS, MONOPED
 from pybullet_sim.config import parse_robot_config
 from robot_rl.params import ParamError
 

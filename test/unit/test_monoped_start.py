@@ -13,9 +13,10 @@ import pybullet as p
 import pytest
 from tf.transformations import quaternion_matrix
 
-from hopper_training.hop import HOP
+from hopper_training.envs.hop import HOP
+from hopper_training.envs.stay_up import STAY_UP
 from hopper_training.kinematics import FOOT_LINK, leg_kinematics, tilt_rotation
-from hopper_training.monoped_env import JOINTS, MONOPED, STAY_UP
+from hopper_training.robot import JOINTS, MONOPED
 
 KINEMATICS = leg_kinematics(MONOPED.urdf_path)
 

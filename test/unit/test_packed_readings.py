@@ -3,8 +3,8 @@
 One stamp for all: every reading of a snapshot carries the sim time of the joint states."""
 import pytest
 
-from hopper_training.monoped_env import STAY_UP
-from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from hopper_training.envs.stay_up import STAY_UP
+from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from pybullet_sim.readings import ContactPoint, ContactReading, ImuReading, JointStateReading, OdometryReading
 from pybullet_sim.sensors import pack_readings, unpack_readings
 from robot_rl.backends import DirectBackend

@@ -160,6 +160,6 @@ def test_launch_argument_text_is_typed_as_yaml_types_a_scalar_and_never_evaluate
 @pytest.mark.parametrize("key, value", [("seed", 2**31), ("seed", -1), ("nepisodes", 10**10), ("nsteps", 10**10),
                                         ("running_step", 1e308)])
 def test_absurd_but_finite_task_params_are_refused(key, value):
-    from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+    from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
     with pytest.raises(ParamError, match=f"parameter '{key}' = .* out of range"):
         ONE_DISK_WALK.default_params().with_changes("test", **{key: value})

@@ -9,8 +9,8 @@ import pytest
 import rospy
 import yaml
 
-from hopper_training.monoped_env import JOINTS, MONOPED
-from moving_cube_training.one_disk_walk import MOVING_CUBE
+from hopper_training.robot import JOINTS, MONOPED
+from moving_cube_training.robot import MOVING_CUBE
 from pybullet_sim.config import parse_robot_config
 from pybullet_sim.errors import ConfigError
 from pybullet_sim.msg import Readings

@@ -7,8 +7,8 @@ import pybullet as p
 import pytest
 import yaml
 
-from hopper_training.monoped_env import MONOPED
-from moving_cube_training.one_disk_walk import MOVING_CUBE
+from hopper_training.robot import MONOPED
+from moving_cube_training.robot import MOVING_CUBE
 from pybullet_sim import physics_properties
 from pybullet_sim.config import parse_robot_config
 from pybullet_sim.readings import FrameState, JointStateReading, OdometryReading

@@ -6,7 +6,7 @@ import io
 import pytest
 import yaml
 
-from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from robot_rl.agents import find_agent
 from robot_rl.params import MAX_COUNT
 from workspace_tools import sweep_spec

@@ -17,12 +17,23 @@ IDS = [task.env_id for task in ALL_TASKS]
 
 
 def test_the_tasks_are_registered():
-    assert IDS == ["MovingCubeOneDiskWalk-v0", "Monoped-v0", "MonopedHop-v0", "MonopedHopLevel-v0",
+    assert IDS == ["MovingCubeOneDiskWalk-v0", "Monoped-v0", "MonopedHop-v0", "MonopedHopInPlace-v0",
                    "MonopedResidualInPlace-v0", "MonopedResidualForward-v0"]
     assert all(TASKS[env_id] is task for env_id, task in zip(IDS, ALL_TASKS))
     assert find_task(hopper_training.TASKS, "hop").env_id == "MonopedHop-v0"
-    assert find_task(hopper_training.TASKS, "hop_in_place").env_id == "MonopedHopLevel-v0"
+    assert find_task(hopper_training.TASKS, "hop_in_place").env_id == "MonopedHopInPlace-v0"
     assert find_task(hopper_training.TASKS, "residual_forward").env_id == "MonopedResidualForward-v0"
+
+
+def test_a_tasks_former_env_id_still_makes_its_env():
+    """MonopedHopLevel-v0, hop_in_place's env id before it was named after its task, is an alias."""
+    spec = gymnasium.spec("MonopedHopLevel-v0")
+    assert (spec.entry_point, spec.max_episode_steps) == (hopper_training.HOP_IN_PLACE.entry_point, 10000)
+    env = gymnasium.make("MonopedHopLevel-v0", backend="direct")
+    try:
+        assert env.unwrapped.task is hopper_training.HOP_IN_PLACE
+    finally:
+        env.close()
 
 
 @pytest.mark.parametrize("task", ALL_TASKS, ids=IDS)

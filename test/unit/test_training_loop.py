@@ -7,7 +7,7 @@ import json
 import pytest
 import yaml
 
-from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from robot_rl.ledger import TrainingHooks
 from robot_rl.results import EpisodeRecord, RunDirectory
 from robot_rl.task import make_env

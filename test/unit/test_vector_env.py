@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode
 
-from hopper_training.monoped_env import STAY_UP
-from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from hopper_training.envs.stay_up import STAY_UP
+from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from robot_rl.task import make_env
 from robot_rl.vector import EnvWorkers, WorkerError, as_env_actions, checked_actions, make_vector_env, worker_seeds
 
@@ -125,7 +125,7 @@ def test_an_exception_in_a_worker_names_it_and_the_others_close_cleanly():
 
 ORPHANED_WORKERS = """
 import sys
-from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from robot_rl.vector import EnvWorkers
 if __name__ == "__main__":
     workers = EnvWorkers(ONE_DISK_WALK, 2, backend="direct", seed=0)

@@ -290,7 +290,7 @@ def any_world(request, make_world):
     """Each robot as configured; the hopper's is built from hopper_description's files."""
     if request.param == "cube":
         return make_world()
-    from hopper_training.monoped_env import MONOPED
+    from hopper_training.robot import MONOPED
     config = parse_robot_config(yaml.safe_load(MONOPED.sim_config_path.read_text()))
     world = World(MONOPED.urdf_path.read_text(), config, time_step=TIME_STEP)
     request.addfinalizer(world.close)

@@ -6,7 +6,7 @@ import math
 import pytest
 import yaml
 
-from hopper_training.monoped_env import MONOPED
+from hopper_training.robot import MONOPED
 from pybullet_sim.config import parse_robot_config
 from pybullet_sim.readings import FrameState
 from pybullet_sim.world import DEFAULT_GRAVITY, SolverSettings, World

@@ -72,8 +72,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from hopper_training.monoped_env import STAY_UP
-from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+from hopper_training.envs.stay_up import STAY_UP
+from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from robot_rl.params import TaskParams
 from robot_rl.task import TaskSpec, make_env
 from workspace_tools.processes import Processes, RosMaster, launch_args

@@ -152,7 +152,7 @@ def _env_rates(ray: Any, cluster: Any, steps: int) -> dict[str, tuple[float, flo
     process of the cluster)."""
     from ray.dag import InputNode, MultiOutputNode
 
-    from moving_cube_training.one_disk_walk import ONE_DISK_WALK
+    from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
     from robot_rl.ray_workers import RayEnvWorkers
     from robot_rl.vector import EnvWorkers
 

@@ -3,7 +3,7 @@
 its weights only (workspace_tools.ship).
 
   ship_policy.py RUN DESTINATION
-  e.g. ./ws exec rosrun workspace_tools ship_policy.py training_results/monoped_residual_forward-sac/sac_s0 \
+  e.g. ./ws exec rosrun workspace_tools ship_policy.py training_results/residual_forward-sac/sac_s0 \
            hopper_training/policies/residual_forward_sac
 """
 import argparse

@@ -1,18 +1,25 @@
-"""The monoped hopper's training: the Monoped-v0 (stay up), MonopedHop-v0, MonopedHopLevel-v0 (hop in place,
-one decision per hop) and the residual (MonopedResidualInPlace-v0, MonopedResidualForward-v0: a deep agent's
-residual on the hopping controller) tasks.
+"""The monoped hopper's training: the Monoped-v0 (stay up), MonopedHop-v0, MonopedHopInPlace-v0 (hop in place,
+one decision per hop; MonopedHopLevel-v0 is its former id, registered as an alias) and the residual
+(MonopedResidualInPlace-v0, MonopedResidualForward-v0: a deep agent's residual on the hopping controller) tasks.
 
 Importing this package registers them with gymnasium:
 `gymnasium.make("Monoped-v0", backend="ros" | "direct")`.
 """
 from typing import Any
 
+import gymnasium
+
 from robot_rl.task import TaskSpec, register_tasks
 
-from .hop import HOP
-from .hop_level import HOP_LEVEL
-from .hop_residual import RESIDUAL_FORWARD, RESIDUAL_IN_PLACE
-from .monoped_env import STAY_UP
+from .envs.hop import HOP
+from .envs.hop_in_place import HOP_IN_PLACE
+from .envs.residual_forward import RESIDUAL_FORWARD
+from .envs.residual_in_place import RESIDUAL_IN_PLACE
+from .envs.stay_up import STAY_UP
 
-TASKS: list[TaskSpec[Any]] = [STAY_UP, HOP, HOP_LEVEL, RESIDUAL_IN_PLACE, RESIDUAL_FORWARD]
+TASKS: list[TaskSpec[Any]] = [STAY_UP, HOP, HOP_IN_PLACE, RESIDUAL_IN_PLACE, RESIDUAL_FORWARD]
+ENV_ID_ALIASES = {"MonopedHopLevel-v0": HOP_IN_PLACE}  # former env ids that gymnasium.make still takes
 register_tasks(*TASKS)
+for alias, spec in ENV_ID_ALIASES.items():
+    if alias not in gymnasium.registry:
+        gymnasium.register(id=alias, entry_point=spec.entry_point, max_episode_steps=spec.max_episode_steps)

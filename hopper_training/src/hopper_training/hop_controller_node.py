@@ -1,4 +1,4 @@
-"""The hop_controller node: hopper_training.controller on the tutorial's topics, for a free-running sim.
+"""The hop_controller node: hopper_training.controller.core on the tutorial's topics, for a free-running sim.
 
 Subscribes to the monoped's sensors as the tutorial named them (/monoped/joint_states, /monoped/imu/data,
 /odom, /lowerleg_contactsensor_state) and publishes ONLY the three position commands
@@ -28,7 +28,7 @@ from pybullet_sim.readings import ContactReading, ImuReading, OdometryReading
 from pybullet_sim.ros.messages import contact_reading, imu_reading, joint_state_reading, odometry_reading
 from pybullet_sim.ros.shutdown import shutdown_on_signals
 
-from .controller import HopController, HopGains, hop_input
+from .controller.core import HopController, HopGains, hop_input
 
 JOINT_STATES = "/monoped/joint_states"
 IMU = "/monoped/imu/data"

@@ -9,7 +9,9 @@ from dataclasses import dataclass
 
 from robot_rl.params import ParamError, Params, Point, TaskParams, param
 
-ACTION_MODES = ("accumulate", "tutorial", "targets")
+from .robot import JOINTS, MONOPED
+
+ACTION_MODES = ("accumulate", "tutorial", "targets")  # the names of actions.ACTION_INTERFACES
 OBSERVATIONS = ("standard", "extended")
 
 
@@ -71,7 +73,6 @@ class MonopedParams(TaskParams):
         if not self.initial_tilt.low <= self.initial_tilt.high:
             raise ParamError(f"{source}: parameter 'initial_tilt/low' ({self.initial_tilt.low}) must not be above "
                              f"'initial_tilt/high' ({self.initial_tilt.high})")
-        from .monoped_env import JOINTS, MONOPED  # which imports this module
         for name, (low, high) in zip(JOINTS, MONOPED.joint_limits(JOINTS)):
             key = name.removesuffix("_joint")
             value = getattr(self.start_pose, key)

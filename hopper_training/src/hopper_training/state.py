@@ -10,6 +10,7 @@ from robot_rl.discretiser import Discretiser
 from robot_rl.task import StateKey
 
 from .params import MonopedParams
+from .robot import JOINTS, MONOPED
 
 TUTORIAL_DIVISIONS = 10
 # Decades: a fall grows about e-fold every 0.3 s from ~1e-8 rad, so the decade of the tilt (rate) is
@@ -27,7 +28,6 @@ class TutorialStateKey:
     hfe [-1.6, 1.6], kfe [-1.6, 0])."""
 
     def __init__(self, params: MonopedParams):
-        from .monoped_env import JOINTS, MONOPED  # which imports this module
         span, incl = params.max_height - params.min_height, params.max_incl
         joint_limits = MONOPED.joint_limits(JOINTS)
         self.discretiser = Discretiser(

@@ -7,7 +7,7 @@ from typing import Any
 
 from robot_rl.task import TaskSpec, register_tasks
 
-from .one_disk_walk import ONE_DISK_WALK
+from .envs.one_disk_walk import ONE_DISK_WALK
 
 TASKS: list[TaskSpec[Any]] = [ONE_DISK_WALK]
 register_tasks(*TASKS)

@@ -21,9 +21,9 @@ contact and the knee's rate:
   along world x and y (T_s: the last stance time; Raibert's neutral point plus a speed correction; b: each
   touchdown adds k_i times the flight's mean speed error, which removes the steady speed error), the
   hips solving for the body's tilt and yaw (the hips cannot hold the yaw of a point foot: it drifts).
-  Hooks for the hop-level task (hop_level.py): `placement_offset` (m, world x, y) is added to the foot
+  Hooks for the hop_in_place task (envs/hop_in_place.py): `placement_offset` (m, world x, y) is added to the foot
   placement, and HopGains.speed_feedback False leaves out k_v (v - v_d) and b (the neutral point remains).
-  For the residual tasks (hop_residual.py): `hip_offset` (rad, haa and hfe) is added to the flight's hip
+  For the residual tasks (envs/residual_in_place.py): `hip_offset` (rad, haa and hfe) is added to the flight's hip
   targets that the inverse kinematics solved for, before the swing gain.
 
 The leg's kinematics and masses (LegModel) are hopper_description/urdf/monoped.urdf's; test_hop_controller.py
@@ -39,6 +39,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pybullet_sim.readings import ContactReading, ImuReading, JointStateReading, OdometryReading
+
+from ..robot import JOINTS
 
 GRAVITY = 9.81
 KNEE_LIMITS = (-1.6, 0.0)
@@ -65,9 +67,6 @@ class HopInput:
     position: Sequence[float]                # the odometry's base position (m, world)
     linear_velocity: Sequence[float]         # the odometry's base velocity (m/s, world)
     contact: bool                            # the foot touches the ground
-
-
-JOINTS = ("haa_joint", "hfe_joint", "kfe_joint")
 
 
 def hop_input(joints: JointStateReading, imu: ImuReading, odometry: OdometryReading,

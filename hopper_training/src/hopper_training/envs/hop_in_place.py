@@ -1,10 +1,12 @@
-"""MonopedHopLevel-v0: the monoped hops in place, one decision per hop (issue 27, "learned hopping, tabular").
+"""MonopedHopInPlace-v0: the monoped hops in place, one decision per hop (issue 27, "learned hopping, tabular").
+
+Its former env id, MonopedHopLevel-v0, is registered too, as an alias.
 
 Per-step actions every 20 ms cannot hop (the controller needs a command every 1 ms,
 docs/research/2026-11-25-hop-stages.md), so one env step here is one hop: from a lift-off to the next. In
-between, the hand-written hop cycle of controller.py runs every control period (running_step, 1 ms) through
-the backend, in lockstep as every task's step.
-Hand-written (controller.py): the phase machine, the landing crouch and the thrust, the stance attitude (hip
+between, the hand-written hop cycle of the controller (controller/core.py) runs every control period
+(running_step, 1 ms) through the backend, in lockstep as every task's step (hop_cycle.py: HopCycleEnv).
+Hand-written (controller/core.py): the phase machine, the landing crouch and the thrust, the stance attitude (hip
     torques through the centre of mass, PD on the tilt), the flight swing and the leg's inverse kinematics.
 Learned (the action, once per hop): where the foot lands, as an offset along the velocity. The controller's
     own placement law is switched off: its speed feedback k_v (v - v_d) and per-hop sum b always
@@ -36,7 +38,7 @@ Observation: Box(8,) float32, at the decision point
     6     base height (m)
     7     the hop's duration (s of sim time since the last decision point)
 State key (state_key hop): speed in bins (edges SPEED_EDGES) x the sign of the lean along the velocity:
-    8 x 2 = 16 keys (HopLevelStateKey).
+    8 x 2 = 16 keys (HopInPlaceStateKey).
 Reward: the sum of the terms, each in info as reward_<term>
     alive  alive_reward per second of sim time the hop lasted (alive_reward x duration)
     speed  -speed_weight x the speed at the decision point (hop in place: moving costs)
@@ -55,11 +57,9 @@ Metrics: Monoped-v0's (time_upright_s from episode_time), and drift (m: the base
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-import gymnasium
 import numpy as np
 from gymnasium import spaces
 
@@ -67,46 +67,18 @@ from robot_rl.backends import Readings
 from robot_rl.discretiser import Discretiser
 from robot_rl.env_base import StepOutcome
 from robot_rl.params import ParamError, param
-from robot_rl.task import Episode, MetricValue, StateKey, TaskSpec
+from robot_rl.task import StateKey, TaskSpec
 
-from .controller import HopController, HopGains, Phase, hop_input
-from .monoped_env import (
-    CONTACT_SENSOR,
-    CONTROLLERS,
-    IMU_SENSOR,
-    MONOPED,
-    ODOMETRY_SENSOR,
-    MonopedEnv,
-    base_rpy,
-    contact_force,
-    monoped_metrics,
-)
-from .params import MonopedParams
-
-if TYPE_CHECKING:
-    from robot_rl.evaluation import ConstantAction
+from ..robot import MONOPED, ODOMETRY_SENSOR, base_rpy
+from .hop_cycle import HopCycleEnv, HopCycleParams, hop_cycle_metrics
 
 SPEED_EDGES = [0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5]  # m/s
 LEAN_EDGES = [0.0]                          # the sign of the lean towards the velocity
-MIN_SPEED = 1e-3                            # m/s: below this the velocity has no direction
-VELOCITY_WINDOW = 5                         # readings: the velocity at a decision point is their mean
-STANCE_PHASES = (Phase.LOADING, Phase.COMPRESSION, Phase.THRUST, Phase.UNLOADING)
 
 
 @dataclass(frozen=True, kw_only=True)
-class HopCycleParams(MonopedParams):
-    """The params of the tasks whose step is one hop of the controller's cycle (this one, hop_residual.py)."""
-
-    speed_weight: float = param(low=0.0, doc="reward per hop: minus this x the speed error (m/s) at the decision point")
-    max_hop_s: float = param(low=0.1, high=5.0, doc="s: a step ends after this without a lift-off")
-    neutral_point: bool = param(default=True, doc="the controller's neutral point v T_s / 2 (false: the agent's too)")
-    speed_feedback: bool = param(default=False, doc="the controller's own k_v (v - v_d) and b: true only for "
-                                                    "evaluate.py --policy controller")
-
-
-@dataclass(frozen=True, kw_only=True)
-class HopLevelParams(HopCycleParams):
-    state_key: str = param(choices=("hop",), default="hop", doc="the Q-learning state key: hop (HopLevelStateKey)")
+class HopInPlaceParams(HopCycleParams):
+    state_key: str = param(choices=("hop",), default="hop", doc="the Q-learning state key: hop (HopInPlaceStateKey)")
     offset_min: float = param(low=-0.2, high=0.2, doc="m: the foot placement offset of offset index 0")
     offset_max: float = param(low=-0.2, high=0.2, doc="m: that of the last offset index")
     offset_levels: int = param(low=1, high=15, doc="offsets to choose from")
@@ -132,168 +104,57 @@ def _levels(low: float, high: float, n: int) -> list[float]:
     return [low] if n == 1 else [float(v) for v in np.linspace(low, high, n)]
 
 
-def offsets(params: HopLevelParams) -> list[float]:
+def offsets(params: HopInPlaceParams) -> list[float]:
     """The foot placement offsets (m along the velocity), by offset index."""
     return _levels(params.offset_min, params.offset_max, params.offset_levels)
 
 
-def thrust_knees(params: HopLevelParams) -> list[float]:
+def thrust_knees(params: HopInPlaceParams) -> list[float]:
     """The knee's thrust targets (rad), by thrust index."""
     return _levels(params.thrust_min, params.thrust_max, params.thrust_levels)
 
 
-def action_meaning(params: HopLevelParams, action: int) -> tuple[float, float]:
+def action_meaning(params: HopInPlaceParams, action: int) -> tuple[float, float]:
     """(offset m, thrust knee rad) of an action."""
     offset, thrust = divmod(int(action), params.thrust_levels)
     return offsets(params)[offset], thrust_knees(params)[thrust]
 
 
-def do_nothing_action(params: HopLevelParams) -> int:
+def do_nothing_action(params: HopInPlaceParams) -> int:
     """The action of offset 0 and the default thrust: the hand-written part alone."""
     offset = next(i for i, o in enumerate(offsets(params)) if math.isclose(o, 0.0, abs_tol=1e-9))
     thrust = next(i for i, t in enumerate(thrust_knees(params)) if math.isclose(t, params.default_thrust))
     return offset * params.thrust_levels + thrust
 
 
-class HopLevelStateKey:
+class HopInPlaceStateKey:
     """Speed in bins (SPEED_EDGES) and the sign of the lean along the velocity (LEAN_EDGES): 8 x 2 keys."""
 
-    def __init__(self, params: HopLevelParams):
+    def __init__(self, params: HopInPlaceParams):
         self.discretiser = Discretiser.from_edges([SPEED_EDGES, LEAN_EDGES])
 
     def key(self, observation: np.ndarray) -> str:
         return self.discretiser.key([float(observation[2]), float(observation[3])])
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, Any]:  # the format keeps its old name: checkpoints (the shipped one) record it
         return {"format": "hopper_training.hop_level_state_key/2", "discretiser": self.discretiser.to_dict()}
 
 
-def hop_level_state_key(params: HopLevelParams) -> StateKey:
-    return HopLevelStateKey(params)
+def hop_in_place_state_key(params: HopInPlaceParams) -> StateKey:
+    return HopInPlaceStateKey(params)
 
 
-def hop_level_metrics(episode: Episode) -> dict[str, MetricValue]:
-    """Monoped-v0's metrics (time_upright_s: the episode's sim time, from info's episode_time), plus the
-    horizontal drift (m)."""
-    metrics = monoped_metrics(episode)
-    metrics["drift"] = float(episode.info.get("drift", 0.0))
-    return metrics
-
-
-HOP_LEVEL = TaskSpec(
-    name="hop_in_place", env_id="MonopedHopLevel-v0", entry_point=f"{__name__}:MonopedHopLevelEnv",
-    package="hopper_training", robot=MONOPED, params_type=HopLevelParams, params_namespace="/",
-    state_key=hop_level_state_key, results_name="monoped_hop_level", reward_topic="/monoped/reward",
+HOP_IN_PLACE = TaskSpec(
+    name="hop_in_place", env_id="MonopedHopInPlace-v0", entry_point=f"{__name__}:MonopedHopInPlaceEnv",
+    package="hopper_training", robot=MONOPED, params_type=HopInPlaceParams, params_namespace="/",
+    state_key=hop_in_place_state_key, results_name="hop_in_place", reward_topic="/monoped/reward",
     episode_reward_topic="/monoped/episode_reward", publish_cumulated_reward=True, max_episode_steps=10000,
-    metrics=hop_level_metrics, headline_metric="time_upright_s", eval_horizon_s=10.0, curve_metrics=("hops", "drift"))
+    metrics=hop_cycle_metrics, headline_metric="time_upright_s", eval_horizon_s=10.0, curve_metrics=("hops", "drift"))
 
 
-class HopCycleEnv(MonopedEnv):
-    """The monoped's tasks whose step is one hop: the controller runs the hop cycle every running_step from a
-    lift-off to the next (a fall or the horizon); subclasses give the spaces, the action, the observation and
-    the reward."""
-
-    multi_period_steps = True  # a step is a hop of many control periods: period_hooks after each
-    params: HopCycleParams
-
-    def __init__(self, *args: Any, **kwargs: Any):
-        super().__init__(*args, **kwargs)
-        self.controller = HopController(self._controller_gains())
-
-    def _controller_gains(self) -> HopGains:
-        return replace(HopGains(), speed_feedback=self.params.speed_feedback, neutral_point=self.params.neutral_point)
-
-    @property
-    def start_targets(self) -> list[float]:
-        pose = self.params.start_pose
-        return [pose.haa, pose.hfe, pose.kfe]
-
-    def _start_episode(self, readings: Readings) -> None:
-        super()._start_episode(readings)
-        self.controller.reset()
-        self.episode_start = readings.stamp
-        self.decision_time = readings.stamp
-        self.start_xy = readings.odometry(ODOMETRY_SENSOR).position[:2]
-        self.hop_time = 0.0
-        self.fell = False
-        self.velocities: deque[tuple[float, float]] = deque(maxlen=VELOCITY_WINDOW)
-        velocity = readings.odometry(ODOMETRY_SENSOR).linear_velocity
-        self.velocities.append((velocity[0], velocity[1]))
-
-    @property
-    def horizon_s(self) -> float:
-        """The episode's sim time: nsteps x running_step (robot_rl.task.make_env gives the env its TimeLimit's
-        nsteps)."""
-        return self.params.nsteps * self.running_step
-
-    def _velocity_frame(self) -> tuple[float, float, float, tuple[float, float]]:
-        """(vx, vy, speed, unit direction of the velocity: +x below MIN_SPEED), from the last readings' mean."""
-        vx, vy = (sum(v[i] for v in self.velocities) / len(self.velocities) for i in (0, 1))
-        speed = math.hypot(vx, vy)
-        return vx, vy, speed, ((vx / speed, vy / speed) if speed >= MIN_SPEED else (1.0, 0.0))
-
-    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        """One hop: the controller every running_step until the next lift-off, a fall or the horizon."""
-        self._check_open()
-        if self.readings is None:
-            raise gymnasium.error.ResetNeeded("call reset() before step()")
-        if not self.action_space.contains(action):
-            raise ValueError(f"action {action!r} is not in {self.action_space}")
-        self._apply_action(action, self.readings)
-        self.readings = readings = self._advance()
-        observation = self._observe(readings)
-        terms, terminated, info = self._reward_and_termination(observation, readings)
-        for name, value in terms.items():
-            info[f"reward_{name}"] = value
-        info["sim_time"] = readings.stamp
-        truncated = not terminated and info["episode_time"] >= self.horizon_s - 1e-9
-        if self.render_mode == "human":
-            self.render()
-        return observation, float(sum(terms.values())), terminated, truncated, info
-
-    def _advance(self) -> Readings:
-        """Run the hop cycle from the last readings to the next decision point; the last readings."""
-        readings = self.readings
-        assert readings is not None
-        started = readings.stamp
-        controller, p = self.controller, self.params
-        self.fell = False
-        while True:
-            before = controller.phase
-            targets = controller.update(hop_input(readings.joints, readings.imu(IMU_SENSOR),
-                                                  readings.odometry(ODOMETRY_SENSOR), readings.contact(CONTACT_SENSOR)))
-            for name, target in zip(CONTROLLERS, targets):
-                self.backend.set_command(name, target)
-            self.targets = list(targets)
-            readings = self.backend.step(self.physics_steps)
-            for hook in self.period_hooks:
-                hook()
-            odometry = readings.odometry(ODOMETRY_SENSOR)
-            position = odometry.position
-            self.velocities.append((odometry.linear_velocity[0], odometry.linear_velocity[1]))
-            self.hop_tracker.add(readings.stamp, position, contact_force(readings) > 0.0)
-            roll, pitch, _ = base_rpy(readings)
-            if not (p.min_height <= position[2] < p.max_height and abs(roll) < p.max_incl and abs(pitch) < p.max_incl):
-                self.fell = True
-                break
-            lift_off = before in STANCE_PHASES and controller.phase is Phase.FLIGHT
-            if (lift_off or readings.stamp - self.episode_start >= self.horizon_s - 1e-9
-                    or readings.stamp - started >= p.max_hop_s - 1e-9):
-                break
-        self.hop_time = readings.stamp - started
-        return readings
-
-    def _hop_info(self, readings: Readings) -> dict[str, Any]:
-        """The info of every hop-level step (the module docstring's Info)."""
-        position = readings.odometry(ODOMETRY_SENSOR).position
-        return {"fell": self.fell, "base_height": position[2], "x_travelled": position[0] - self.start_x,
-                **self.hop_tracker.summary(), "episode_time": readings.stamp - self.episode_start,
-                "hop_time": self.hop_time, "drift": math.dist(position[:2], self.start_xy)}
-
-
-class MonopedHopLevelEnv(HopCycleEnv):
-    task = HOP_LEVEL
-    params: HopLevelParams
+class MonopedHopInPlaceEnv(HopCycleEnv):
+    task = HOP_IN_PLACE
+    params: HopInPlaceParams
 
     def _spaces(self) -> tuple[spaces.Discrete | spaces.Box, spaces.Box]:
         p = self.params
@@ -332,20 +193,3 @@ class MonopedHopLevelEnv(HopCycleEnv):
         if self.fell:
             return {"fall": p.done_reward}, True, info
         return {"alive": p.alive_reward * self.hop_time, "speed": -p.speed_weight * float(observation[2])}, False, info
-
-
-def do_nothing_policy(env: Any, speed: float) -> ConstantAction:
-    """evaluate.py --policy do_nothing: the do-nothing action every hop (offset 0, the default thrust)."""
-    from robot_rl.evaluation import ConstantAction  # evaluate.py's, not the env's: kept out of the task's imports
-    params = env.unwrapped.params
-    if not isinstance(params, HopLevelParams):
-        raise ValueError(f"--policy do_nothing is for --task {HOP_LEVEL.name}")
-    if speed != 0.0:
-        raise ValueError(f"--task {HOP_LEVEL.name} hops in place: --speed must be 0, got {speed}")
-    return ConstantAction(do_nothing_action(params))
-
-
-def controller_params(params: HopLevelParams) -> HopLevelParams:
-    """The hand-written controller on this task: its neutral point and speed feedback on (the do-nothing
-    action then adds nothing to them)."""
-    return params.with_changes("--policy controller", neutral_point=True, speed_feedback=True)

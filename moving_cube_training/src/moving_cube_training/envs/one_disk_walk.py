@@ -42,18 +42,13 @@ from tf.transformations import euler_from_quaternion
 
 from robot_rl.backends import Readings
 from robot_rl.env_base import RobotEnv, StepOutcome
-from robot_rl.task import Episode, MetricValue, RobotSpec, TaskSpec
+from robot_rl.task import Episode, MetricValue, TaskSpec
 
-from .params import N_ACTIONS, CubeParams
-from .state import CubeStateKey
+from ..params import N_ACTIONS, CubeParams
+from ..robot import MOVING_CUBE, ODOMETRY_SENSOR, WHEEL_CONTROLLER, WHEEL_JOINT
+from ..state import CubeStateKey
 
-WHEEL_CONTROLLER = "inertia_wheel_roll_joint_velocity_controller"
-ODOMETRY_SENSOR = "p3d_base_controller"
-WHEEL_JOINT = "inertia_wheel_roll_joint"
 SUCCESS_DISTANCE = 0.5      # m along +y: an episode that ends this far along has succeeded
-
-MOVING_CUBE = RobotSpec(description_package="moving_cube_description", urdf="urdf/moving_cube.urdf",
-                        sim_config="config/moving_cube_sim.yaml", sim_launch="roslaunch pybullet_sim cube_sim.launch")
 
 
 def cube_metrics(episode: Episode) -> dict[str, MetricValue]:

@@ -1,8 +1,9 @@
-"""MonopedResidualInPlace-v0 and MonopedResidualForward-v0: a deep agent's action added to the hopping
-controller's joint targets (issue 27, "learned hopping, deep", the residual mode).
+"""MonopedResidualInPlace-v0: the monoped hops in place, a deep agent's action added to the hopping controller's
+joint targets (issue 27, "learned hopping, deep", the residual mode). MonopedResidualForward-v0
+(residual_forward.py) is this task commanded forward.
 
-One env step is one hop, lift-off to lift-off, as MonopedHopLevel-v0's (hop_level.py: HopCycleEnv): the
-hand-written controller (controller.py) runs the hop cycle every running_step below it. Its foot placement law
+One env step is one hop, lift-off to lift-off, as MonopedHopInPlace-v0's (hop_cycle.py: HopCycleEnv): the
+hand-written controller (controller/core.py) runs the hop cycle every running_step below it. Its foot placement law
 is switched off (neutral_point and speed_feedback false in the YAMLs): alone it sets the hips so that the foot
 lands under the centre of mass, and the robot runs away and falls (evaluate.py --policy do_nothing).
 Learned (the action, once per hop): residual_range x action (rad) added to the haa and hfe targets that the
@@ -25,7 +26,7 @@ Reward: the sum of the terms, each in info as reward_<term>
     alive  alive_reward per second of sim time the hop lasted (alive_reward x duration)
     speed  -speed_weight x the magnitude of the velocity error (world, m/s) at the decision point
     fall   done_reward, alone, on the step that ends the episode by a fall
-Terminated, truncated, info and metrics: MonopedHopLevel-v0's (hop_level.py); info adds residual (rad, haa and
+Terminated, truncated, info and metrics: MonopedHopInPlace-v0's (hop_in_place.py); info adds residual (rad, haa and
     hfe). MonopedResidualForward-v0's headline metric is forward_speed (m/s along +x over the last 5 s).
 The two tasks differ only in their YAML: target_speed 0 (residual_in_place) or 0.4 m/s (residual_forward).
 """
@@ -43,10 +44,10 @@ from robot_rl.env_base import StepOutcome
 from robot_rl.params import param
 from robot_rl.task import TaskSpec
 
-from .controller import HopGains
-from .hop_level import HopCycleEnv, HopCycleParams, hop_level_metrics
-from .monoped_env import IMU_SENSOR, MONOPED, ODOMETRY_SENSOR, base_rpy
-from .state import monoped_state_key
+from ..controller.core import HopGains
+from ..robot import IMU_SENSOR, MONOPED, ODOMETRY_SENSOR, base_rpy
+from ..state import monoped_state_key
+from .hop_cycle import HopCycleEnv, HopCycleParams, hop_cycle_metrics
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -56,20 +57,18 @@ class HopResidualParams(HopCycleParams):
     target_speed: float = param(low=-1.0, high=1.0, doc="m/s along world +x: the commanded velocity")
 
 
-def _residual_task(name: str, env_id: str, env_class: str, headline: str) -> TaskSpec[HopResidualParams]:
+def residual_task(name: str, env_id: str, entry_point: str, headline: str) -> TaskSpec[HopResidualParams]:
+    """The spec of a residual task (this one and residual_forward.py's): they differ in name and headline metric."""
     return TaskSpec(
-        name=name, env_id=env_id, entry_point=f"{__name__}:{env_class}", package="hopper_training", robot=MONOPED,
+        name=name, env_id=env_id, entry_point=entry_point, package="hopper_training", robot=MONOPED,
         params_type=HopResidualParams, params_namespace="/", state_key=monoped_state_key,
-        results_name=f"monoped_{name}", reward_topic="/monoped/reward", episode_reward_topic="/monoped/episode_reward",
-        publish_cumulated_reward=True, max_episode_steps=5000, metrics=hop_level_metrics, headline_metric=headline,
+        results_name=name, reward_topic="/monoped/reward", episode_reward_topic="/monoped/episode_reward",
+        publish_cumulated_reward=True, max_episode_steps=5000, metrics=hop_cycle_metrics, headline_metric=headline,
         eval_horizon_s=10.0, curve_metrics=("hops", "drift", "forward_speed"))
 
 
-RESIDUAL_IN_PLACE = _residual_task("residual_in_place", "MonopedResidualInPlace-v0", "MonopedResidualInPlaceEnv",
-                                   "time_upright_s")
-RESIDUAL_FORWARD = _residual_task("residual_forward", "MonopedResidualForward-v0", "MonopedResidualForwardEnv",
-                                  "forward_speed")
-RESIDUAL_TASKS = (RESIDUAL_IN_PLACE, RESIDUAL_FORWARD)
+RESIDUAL_IN_PLACE = residual_task("residual_in_place", "MonopedResidualInPlace-v0",
+                                  f"{__name__}:MonopedResidualInPlaceEnv", "time_upright_s")
 
 
 class MonopedResidualInPlaceEnv(HopCycleEnv):
@@ -120,23 +119,3 @@ class MonopedResidualInPlaceEnv(HopCycleEnv):
             return {"fall": p.done_reward}, True, info
         return {"alive": p.alive_reward * self.hop_time, "speed": -p.speed_weight * math.hypot(*self._speed_error())
                 }, False, info
-
-
-class MonopedResidualForwardEnv(MonopedResidualInPlaceEnv):
-    task = RESIDUAL_FORWARD
-
-
-def zero_residual(env: Any, speed: float) -> Any:
-    """evaluate.py --policy do_nothing (and controller, under controller_params): no residual every hop.
-    The commanded speed is the task's target_speed; --speed must be 0 or equal it."""
-    params = env.unwrapped.params
-    if speed not in (0.0, params.target_speed):
-        raise ValueError(f"--task {env.unwrapped.task.name} is commanded its target_speed "
-                         f"({params.target_speed} m/s): --speed must be 0 or that, got {speed}")
-    action = np.zeros(2, dtype=np.float32)
-    return lambda observation: action
-
-
-def controller_params(params: HopResidualParams) -> HopResidualParams:
-    """The hand-written controller on these tasks: its neutral point and speed feedback on, no residual."""
-    return params.with_changes("--policy controller", neutral_point=True, speed_feedback=True)

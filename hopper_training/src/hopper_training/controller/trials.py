@@ -22,9 +22,9 @@ from pybullet_sim.config import parse_robot_config
 from pybullet_sim.readings import FrameState
 from pybullet_sim.world import World
 
-from .controller import HopController, HopGains, euler_sxyz, hop_input
+from ..robot import CONTROLLERS
+from .core import HopController, HopGains, euler_sxyz, hop_input
 
-CONTROLLERS = ("haa_joint_position_controller", "hfe_joint_position_controller", "kfe_joint_position_controller")
 MIN_HEIGHT = 0.5        # m: the monoped tasks' min_height
 MAX_TILT = 1.57         # rad: their max_incl
 SPEED_WINDOW_S = 5.0    # s: the forward speed is measured over the last this much of a trial

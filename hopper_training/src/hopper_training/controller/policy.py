@@ -15,8 +15,8 @@ import numpy as np
 
 from robot_rl.task import TaskSpec
 
-from .controller import HopController, HopGains, hop_input
-from .monoped_env import CONTACT_SENSOR, IMU_SENSOR, ODOMETRY_SENSOR
+from ..robot import CONTACT_SENSOR, IMU_SENSOR, ODOMETRY_SENSOR
+from .core import HopController, HopGains, hop_input
 
 CONTROL_PERIOD = 0.001  # s: the env's running_step under the controller
 

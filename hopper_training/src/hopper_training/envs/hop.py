@@ -5,7 +5,7 @@ task keeps Monoped-v0's robot, actions, observation and termination, and adds a 
 progress, as Gymnasium's hopper_v5 does (forward_reward_weight * x velocity + a healthy reward), with
 the velocity counted up to target_speed, so that a dive (faster than a hop) pays no more than hopping.
 
-Actions, observation, termination, truncation, info and arguments: as Monoped-v0 (monoped_env.py),
+Actions, observation, termination, truncation, info and arguments: as Monoped-v0 (stay_up.py),
     with HopParams (default config/hop.yaml).
 Reward: the sum of the terms, each in info as reward_<term>
     Monoped-v0's terms (alive, joint_position, joint_effort, contact_force, orientation, distance), with
@@ -27,9 +27,11 @@ from robot_rl.env_base import StepOutcome
 from robot_rl.params import param
 from robot_rl.task import TaskSpec
 
-from .monoped_env import MONOPED, ODOMETRY_SENSOR, MonopedEnv, monoped_metrics
-from .params import MonopedParams
-from .state import monoped_state_key
+from ..params import MonopedParams
+from ..robot import MONOPED, ODOMETRY_SENSOR
+from ..state import monoped_state_key
+from .base import monoped_metrics
+from .stay_up import MonopedEnv
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -42,7 +44,7 @@ class HopParams(MonopedParams):
 HOP = TaskSpec(
     name="hop", env_id="MonopedHop-v0", entry_point=f"{__name__}:MonopedHopEnv", package="hopper_training",
     robot=MONOPED, params_type=HopParams, params_namespace="/", state_key=monoped_state_key,
-    results_name="monoped_hop", reward_topic="/monoped/reward", episode_reward_topic="/monoped/episode_reward",
+    results_name="hop", reward_topic="/monoped/reward", episode_reward_topic="/monoped/episode_reward",
     publish_cumulated_reward=True, max_episode_steps=500, metrics=monoped_metrics, headline_metric="x_distance",
     eval_horizon_s=10.0, curve_metrics=("forward_speed", "hops"))
 

@@ -1,0 +1,67 @@
+"""The hand-written policies evaluate.py offers on the monoped's tasks (--policy controller, do_nothing, random)."""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from robot_rl.evaluation import ConstantAction, ScriptedPolicy, random_actions
+from robot_rl.task import TaskSpec
+
+from .controller.policy import ControllerPolicy
+from .controller.policy import controller_params as step_controller_params
+from .envs.hop_cycle import controller_params as hop_cycle_controller_params
+from .envs.hop_in_place import HOP_IN_PLACE, HopInPlaceParams, do_nothing_action
+from .envs.residual_forward import RESIDUAL_FORWARD
+from .envs.residual_in_place import RESIDUAL_IN_PLACE
+
+RESIDUAL_TASKS = (RESIDUAL_IN_PLACE, RESIDUAL_FORWARD)
+HOP_CYCLE_TASKS = (HOP_IN_PLACE, *RESIDUAL_TASKS)
+
+
+def do_nothing_policy(env: Any, speed: float) -> ConstantAction:
+    """--policy do_nothing on hop_in_place: the do-nothing action every hop (offset 0, the default thrust)."""
+    params = env.unwrapped.params
+    if not isinstance(params, HopInPlaceParams):
+        raise ValueError(f"--policy do_nothing is for --task {HOP_IN_PLACE.name}")
+    if speed != 0.0:
+        raise ValueError(f"--task {HOP_IN_PLACE.name} hops in place: --speed must be 0, got {speed}")
+    return ConstantAction(do_nothing_action(params))
+
+
+def zero_residual(env: Any, speed: float) -> Any:
+    """--policy do_nothing on the residual tasks (and controller, under controller_params): no residual every hop.
+    The commanded speed is the task's target_speed; --speed must be 0 or equal it."""
+    params = env.unwrapped.params
+    if speed not in (0.0, params.target_speed):
+        raise ValueError(f"--task {env.unwrapped.task.name} is commanded its target_speed "
+                         f"({params.target_speed} m/s): --speed must be 0 or that, got {speed}")
+    action = np.zeros(2, dtype=np.float32)
+    return lambda observation: action
+
+
+def controller_params(task: TaskSpec[Any], params: Any) -> Any:
+    """--policy controller's params: the hop-cycle tasks' with the controller's own laws on, the others' in
+    action_mode targets at the control period."""
+    if task in HOP_CYCLE_TASKS:
+        return hop_cycle_controller_params(params)
+    return step_controller_params(task, params)
+
+
+def do_nothing(env: Any, speed: float) -> Any:
+    if env.unwrapped.task in RESIDUAL_TASKS:
+        return zero_residual(env, speed)
+    return do_nothing_policy(env, speed)
+
+
+def controller(env: Any, speed: float) -> Any:
+    if env.unwrapped.task in HOP_CYCLE_TASKS:
+        return do_nothing(env, speed)
+    return ControllerPolicy(env, speed)
+
+
+POLICIES = {
+    "controller": ScriptedPolicy(controller_params, controller),
+    "do_nothing": ScriptedPolicy(lambda task, params: params, do_nothing),
+    "random": ScriptedPolicy(lambda task, params: params,
+                             lambda env, speed: random_actions(env.action_space, np.random.default_rng(0)))}
