@@ -8,7 +8,7 @@ import yaml
 
 from hopper_training.hop_residual import RESIDUAL_FORWARD
 from hopper_training.monoped_env import STAY_UP
-from robot_rl.agents import find_agent
+from robot_rl import find_agent
 from workspace_tools.processes import launch_args
 
 TRAINING_TIMEOUT = 300.0  # wall s: a few episodes of at most 20 lockstep steps, plus roslaunch start-up and torch

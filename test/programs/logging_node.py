@@ -7,7 +7,7 @@ from pathlib import Path
 import rospy
 
 from pybullet_sim.shutdown import shutdown_on_signals
-from robot_rl.training_node import INTERRUPTED
+from robot_rl import INTERRUPTED
 
 rospy.init_node("logging_node", anonymous=True, disable_signals=True)
 signals = shutdown_on_signals()

@@ -9,7 +9,7 @@ import pytest
 from hopper_training.hop_level import HOP_LEVEL
 from hopper_training.monoped_env import STAY_UP
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
-from robot_rl.params import ParamError
+from robot_rl import ParamError
 
 COMPARE = Path(__file__).resolve().parents[2] / "workspace_tools" / "scripts" / "compare_agents.py"
 _spec = importlib.util.spec_from_file_location("workspace_compare_agents", COMPARE)

@@ -22,10 +22,7 @@ from hopper_training.controller_policy import ControllerPolicy, controller_param
 from hopper_training.hop_trials import lean, load_sim_config, make_world, run_trial
 from hopper_training.monoped_env import MONOPED
 from pybullet_sim.config import ConfigError, parse_robot_config
-from robot_rl import evaluation
-from robot_rl.evaluation import ScriptedPolicy
-from robot_rl.results import aggregate
-from robot_rl.task import Episode
+from robot_rl import Episode, ScriptedPolicy, aggregate, evaluation
 
 UPRIGHT = (0.0, 0.0, 0.0, 1.0)
 

@@ -7,7 +7,7 @@ from test_monoped import readings
 
 from hopper_training.hop_metrics import MIN_FLIGHT_S, HopTracker, fit_flight
 from hopper_training.monoped_env import STAY_UP, MonopedEnv, monoped_metrics
-from robot_rl.task import Episode
+from robot_rl import Episode
 
 from fake_backend import FakeBackend
 

@@ -12,7 +12,7 @@ from gymnasium.utils.env_checker import check_env
 from hopper_training.controller import HopController, HopGains, HopInput
 from hopper_training.hop_residual import RESIDUAL_FORWARD, RESIDUAL_IN_PLACE, controller_params, zero_residual
 from hopper_training.monoped_env import base_rpy
-from robot_rl.task import make_env
+from robot_rl import make_env
 
 PARAMS = RESIDUAL_IN_PLACE.default_params()
 

@@ -13,8 +13,7 @@ import pytest
 import hopper_training
 import moving_cube_training
 from pybullet_sim.config import ConfigError, parse_robot_config
-from robot_rl.task import make_env
-from robot_rl.video import VideoRecorder, frame_every
+from robot_rl import VideoRecorder, frame_every, make_env
 
 CUBE, STAY_UP, HOP = (*moving_cube_training.TASKS, *hopper_training.TASKS)[:3]
 ODOMETRY = "p3d_base_controller"
