@@ -70,7 +70,7 @@ from .task import (
     package_path,
     register_tasks,
 )
-from .workers.base import WorkerError, WorkerRestarted, as_env_actions, checked_actions, worker_seeds
+from .workers.base import WorkerError, WorkerRestarted, Workers, as_env_actions, checked_actions, worker_seeds
 from .workers.factory import make_env_workers
 from .workers.pipe import EnvWorkers
 from .workers.private_sim import PrivateSim, default_sigint, free_port, prepare_child, stop_process
@@ -138,7 +138,7 @@ __all__ = [
     "RobotSpec", "RobotVecEnv", "RobotVectorEnv", "RosBackend", "RunDirectory", "RunFileError", "RunLedger",
     "RunLockedError", "SacParams", "ScaledRewards", "ScriptedPolicy", "SimStateError", "StateKey", "StepOutcome",
     "StrPath", "TaskParams", "TaskSpec", "TrainedRun", "Trainer", "TrainingHooks", "TrainingState",
-    "VectorQLearningTrainer", "VideoRecorder", "VideoRequest", "WorkerError", "WorkerRestarted", "agent_of",
+    "VectorQLearningTrainer", "VideoRecorder", "VideoRequest", "WorkerError", "WorkerRestarted", "Workers", "agent_of",
     "aggregate", "as_env_actions", "build_model", "checked_actions", "checkpoint_of", "cluster", "connect",
     "constant_policy", "default_initial_tilt", "default_sigint", "evaluate", "evaluation", "evaluation_main",
     "find_agent", "find_task", "format_duration", "frame_every", "free_port", "init_ros_node", "load_yaml_file",

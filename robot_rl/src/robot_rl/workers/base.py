@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import os
 import shutil
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import gymnasium
 import numpy as np
@@ -50,6 +51,33 @@ class WorkerRestarted(WorkerError):
     def __init__(self, message: str, index: int, observation: Any, info: dict[str, Any]):
         super().__init__(message)
         self.index, self.observation, self.info = index, observation, info
+
+
+class Workers(Protocol):
+    """N env workers as the faces over them (robot_rl.workers.vector_env, robot_rl.agents.sb3.vec_env) and the
+    tabular trainer from N envs use them: robot_rl.workers.pipe.EnvWorkers, robot_rl.workers.ray_actors'
+    RayEnvWorkers. Worker i's replies are robot_rl.workers.base.answer's."""
+
+    n: int
+    observation_space: Any
+    action_space: Any
+    metadata: dict[str, Any]
+    worker_info: list[dict[str, Any]]
+
+    def send(self, i: int, command: str, data: Any = None) -> None:
+        """Send worker i a command; its reply is owed until received."""
+
+    def receive(self, i: int, timeout: float | None = None, what: str = "reply") -> Any:
+        """Worker i's reply (bounded); WorkerError if it failed, died or did not answer."""
+
+    def receive_all(self, timeout: float | None = None, what: str = "reply") -> list[Any]:
+        """Every worker's reply, within `timeout` for all of them."""
+
+    def request_all(self, command: str, data: Sequence[Any]) -> list[Any]:
+        """Send worker i `command` with data[i], then every reply."""
+
+    def close(self) -> None:
+        """End every worker and what it started (bounded; idempotent)."""
 
 
 def worker_seeds(seed: int | None, n: int) -> list[int]:

@@ -9,18 +9,17 @@ from gymnasium.vector.utils import batch_space
 
 from ..params import TaskParams
 from ..task import TaskSpec
-from .base import checked_actions, worker_seeds
+from .base import Workers, checked_actions, worker_seeds
 from .factory import make_env_workers
-from .pipe import EnvWorkers
 
 
 class RobotVectorEnv(VectorEnv):
-    """A gymnasium VectorEnv over EnvWorkers (autoreset SAME_STEP: infos["final_obs"], infos["final_info"]).
+    """A gymnasium VectorEnv over env workers (Workers) (autoreset SAME_STEP: infos["final_obs"], infos["final_info"]).
 
     reset(seed=int) resets worker i with the i-th seed SeedSequence(seed) derives (worker_seeds); a list
     gives each worker its own seed."""
 
-    def __init__(self, workers: EnvWorkers):
+    def __init__(self, workers: Workers):
         self.workers = workers
         self.num_envs = workers.n
         self.single_observation_space = workers.observation_space

@@ -16,15 +16,14 @@ from stable_baselines3.common.vec_env import VecEnv
 
 from ...params import TaskParams
 from ...task import TaskSpec
-from ...workers.base import as_env_actions, worker_seeds
+from ...workers.base import Workers, as_env_actions, worker_seeds
 from ...workers.factory import make_env_workers
-from ...workers.pipe import EnvWorkers
 
 
 class RobotVecEnv(VecEnv):
-    """A Stable-Baselines3 VecEnv over EnvWorkers (see the module docstring)."""
+    """A Stable-Baselines3 VecEnv over env workers (Workers) (see the module docstring)."""
 
-    def __init__(self, workers: EnvWorkers):
+    def __init__(self, workers: Workers):
         self.workers = workers
         super().__init__(workers.n, workers.observation_space, workers.action_space)
 
