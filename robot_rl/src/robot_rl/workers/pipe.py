@@ -1,13 +1,8 @@
-"""Env workers as processes on this machine: one per env, over a pipe, over ROS (each with a master and a sim of
-its own) or direct.
+"""Env workers as processes on this machine, one per env, each answering its parent over a pipe.
 
 `EnvWorkers` starts N worker processes (multiprocessing's "spawn": rospy's state must never cross a
-fork). Worker i makes the task's env with the i-th seed that numpy's SeedSequence derives from the one
-seed given, so a run repeats; over ROS it first starts a `PrivateSim` (rosmaster on a free loopback
-port + the robot's sim node, paused) and becomes a node on that master, so every worker sees the
-tutorials' global topic names; direct workers need no master. A worker resets its env the moment an
-episode ends (gymnasium's SAME_STEP autoreset: the step answers the first observation of the next
-episode, with the last one and the last info beside it).
+fork), over ROS (each with a master and a sim of its own) or direct; what worker i makes and answers is
+robot_rl.workers.base's.
 
 Every wait is bounded: a worker that does not start within `start_timeout`, or does not answer a
 step within `ros_timeout` plus a margin, ends the vector env with a WorkerError naming the worker and
