@@ -20,7 +20,7 @@ import sys
 
 from hopper_training import TASKS
 from hopper_training.scripted_policies import POLICIES
-from robot_rl.evaluation import main
+from robot_rl import evaluation_main as main
 
 if __name__ == "__main__":
     sys.exit(main(sys.argv[1:], TASKS, "evaluate_monoped", POLICIES))

@@ -24,7 +24,7 @@ from tf.transformations import quaternion_matrix
 from hopper_training.actions import HOLD
 from hopper_training.envs.stay_up import STAY_UP
 from hopper_training.robot import CONTROLLERS, JOINTS, joint_positions
-from robot_rl.task import make_env
+from robot_rl import make_env
 
 HORIZON_STEPS = 500  # 10 s at 20 ms
 

@@ -11,7 +11,7 @@ division by zero when no episode ended by a fall).
 import sys
 
 from hopper_training import TASKS
-from robot_rl.training_node import run_training_node
+from robot_rl import run_training_node
 
 if __name__ == "__main__":
     sys.exit(run_training_node(TASKS, "monoped_gym"))

@@ -9,7 +9,7 @@ at least 0.5 m along +y). See robot_rl/src/robot_rl/evaluation.py for every opti
 import sys
 
 from moving_cube_training import TASKS
-from robot_rl.evaluation import main
+from robot_rl import evaluation_main as main
 
 if __name__ == "__main__":
     sys.exit(main(sys.argv[1:], TASKS, "evaluate_moving_cube"))

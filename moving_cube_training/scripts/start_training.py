@@ -8,7 +8,7 @@ anything is written; private params as in robot_rl.training_node. Publishes /mov
 import sys
 
 from moving_cube_training import TASKS
-from robot_rl.training_node import run_training_node
+from robot_rl import run_training_node
 
 if __name__ == "__main__":
     sys.exit(run_training_node(TASKS, "movingcube_gym"))

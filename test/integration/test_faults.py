@@ -333,7 +333,7 @@ def test_resume_with_nothing_to_resume_gives_one_line(master, tmp_path, previous
     results = tmp_path / "results"
     expected = "no previous run under"
     if previous == "without_checkpoint":  # made by another process: the one that creates a run holds its lock
-        subprocess.run([sys.executable, "-c", "from robot_rl.results import RunDirectory; "
+        subprocess.run([sys.executable, "-c", "from robot_rl import RunDirectory; "
                         f"RunDirectory.create({str(results)!r}, 'moving_cube', {{'nepisodes': 3}}, run_name='r')"],
                        check=True, timeout=60)
         expected = f"no checkpoint {results / 'moving_cube' / 'r' / 'qtable.json'}"

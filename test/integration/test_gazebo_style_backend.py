@@ -12,8 +12,8 @@ CLIENT = """
 import json
 import rospy
 from hopper_training.envs.stay_up import STAY_UP
-from robot_rl.backends import GazeboStyleBackend
-from robot_rl.task import make_env
+from robot_rl import GazeboStyleBackend
+from robot_rl import make_env
 
 rospy.wait_for_service("/pybullet_sim/step", 60)  # the launch has set /use_sim_time by then
 rospy.init_node("gazebo_style_client")

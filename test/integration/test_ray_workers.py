@@ -16,10 +16,7 @@ import numpy as np
 import pytest
 
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
-from robot_rl.agents import find_agent
-from robot_rl.ledger import TrainingHooks
-from robot_rl.results import RunDirectory
-from robot_rl.vector import WorkerError, make_vector_env
+from robot_rl import RunDirectory, TrainingHooks, WorkerError, find_agent, make_vector_env
 from workspace_tools.paths import REPO
 from workspace_tools.processes import RosMaster, launch_args
 from workspace_tools.ray_cluster import LoopbackCluster, listening_sockets, process_name
@@ -190,7 +187,7 @@ def test_a_tabular_run_goes_on_when_a_node_is_lost_and_loses_or_repeats_no_episo
 DRIVER = """
 import json, sys, time
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
-from robot_rl.vector import make_vector_env
+from robot_rl import make_vector_env
 params = ONE_DISK_WALK.default_params().with_changes("test", nsteps=6)
 env = make_vector_env(ONE_DISK_WALK, 2, backend="ros", seed=0, params=params, cluster=sys.argv[1])
 env.reset(seed=0)

@@ -8,7 +8,7 @@ import yaml
 
 from hopper_training.envs.residual_forward import RESIDUAL_FORWARD
 from hopper_training.envs.stay_up import STAY_UP
-from robot_rl.agents import find_agent
+from robot_rl import find_agent
 from workspace_tools.processes import launch_args
 
 TRAINING_TIMEOUT = 300.0  # wall s: a few episodes of at most 20 lockstep steps, plus roslaunch start-up and torch

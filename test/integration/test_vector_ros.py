@@ -16,7 +16,7 @@ import rosgraph
 import yaml
 
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
-from robot_rl.vector import WorkerError, make_vector_env
+from robot_rl import WorkerError, make_vector_env
 from workspace_tools.launch_reaper import descendants
 from workspace_tools.paths import PROGRAMS, REPO
 from workspace_tools.processes import Processes, RosMaster, launch_args

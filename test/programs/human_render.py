@@ -13,7 +13,7 @@ from gymnasium.utils.env_checker import check_env
 from PIL import ImageGrab
 
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
-from robot_rl.task import make_env
+from robot_rl import make_env
 
 STEPS = 20
 

@@ -5,7 +5,7 @@ import sys
 from pathlib import Path
 
 from moving_cube_training.robot import MOVING_CUBE, WHEEL_CONTROLLER
-from robot_rl.backends import RosBackend
+from robot_rl import RosBackend
 
 
 def resident_kib(pid: int | str) -> int:

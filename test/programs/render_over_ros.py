@@ -15,7 +15,7 @@ from visualization_msgs.msg import Marker
 import hopper_training
 import moving_cube_training
 from pybullet_sim.ros.client import SimConnectionError
-from robot_rl.task import TASKS, make_env
+from robot_rl import TASKS, make_env
 
 MOVES = {"MovingCubeOneDiskWalk-v0": [0] * 12, "Monoped-v0": [3] * 300 + [4] * 300}
 assert moving_cube_training and hopper_training  # imported to register their tasks

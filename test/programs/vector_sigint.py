@@ -6,7 +6,7 @@ to the process group leaves no process behind."""
 import json
 
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
-from robot_rl.vector import make_vector_env
+from robot_rl import make_vector_env
 
 
 def main() -> None:

@@ -93,7 +93,7 @@ def lockstep_misses(backend, cycles):
 
 def second_backend(cycles):
     """Two RosBackends one after the other in one node; prints the misses of each as JSON."""
-    from robot_rl.backends import RosBackend
+    from robot_rl import RosBackend
     rospy.init_node("cube_env_second_backend")
     misses = []
     for _ in range(2):

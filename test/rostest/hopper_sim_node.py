@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""rostest node: the monoped in the paused sim, stepped in lockstep through pybullet_sim.client."""
+"""rostest node: the monoped in the paused sim, stepped in lockstep through pybullet_sim.ros.client."""
 import math
 import os
 import signal

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from robot_rl.backends import Backend, Readings
+from robot_rl import Backend, Readings
 
 
 class FakeBackend(Backend):

@@ -9,10 +9,18 @@ from pathlib import Path
 import pytest
 
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
-from robot_rl.agents import AGENTS, agent_of, checkpoint_of, find_agent, main
-from robot_rl.params import ParamError, Params
-from robot_rl.results import DEEP_CHECKPOINT, QTABLE_CHECKPOINT
-from robot_rl.task import find_task
+from robot_rl import (
+    AGENTS,
+    DEEP_CHECKPOINT,
+    QTABLE_CHECKPOINT,
+    ParamError,
+    Params,
+    agent_of,
+    checkpoint_of,
+    find_agent,
+    find_task,
+)
+from robot_rl.agents.registry import main
 
 ROOT = Path(__file__).resolve().parents[2]
 LAUNCH_FILES = ["robot_rl/launch/train.launch", "moving_cube_training/launch/main.launch",
@@ -97,6 +105,6 @@ def test_the_launch_files_list_every_agent(path):
 def test_needs_deep_answers_by_exit_code():
     assert [main(["needs-deep", name]) for name in ("qlearn", "dqn", "ppo", "x")] == [1, 0, 0, 1]
     assert main([]) == 2
-    done = subprocess.run([sys.executable, "-c", "import sys, robot_rl.agents; "
-                           "sys.exit(robot_rl.agents.main(['needs-deep', 'dqn']) or 'torch' in sys.modules)"])
+    done = subprocess.run([sys.executable, "-c", "import sys, robot_rl.agents.registry; "
+                           "sys.exit(robot_rl.agents.registry.main(['needs-deep', 'dqn']) or 'torch' in sys.modules)"])
     assert done.returncode == 0, "the registry answers without importing torch"

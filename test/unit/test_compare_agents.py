@@ -9,7 +9,7 @@ import pytest
 from hopper_training.envs.hop_in_place import HOP_IN_PLACE as HOP_LEVEL
 from hopper_training.envs.stay_up import STAY_UP
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
-from robot_rl.params import ParamError
+from robot_rl import ParamError
 
 COMPARE = Path(__file__).resolve().parents[2] / "workspace_tools" / "scripts" / "compare_agents.py"
 _spec = importlib.util.spec_from_file_location("workspace_compare_agents", COMPARE)

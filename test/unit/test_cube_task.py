@@ -17,9 +17,8 @@ from moving_cube_training.params import CubeParams
 from moving_cube_training.robot import MOVING_CUBE, ODOMETRY_SENSOR, WHEEL_CONTROLLER
 from moving_cube_training.state import CubeStateKey
 from pybullet_sim.readings import JointStateReading, OdometryReading
-from robot_rl.backends import Readings
-from robot_rl.params import ParamError, Point
-from robot_rl.task import make_env as make_task_env
+from robot_rl import ParamError, Point, Readings
+from robot_rl import make_env as make_task_env
 
 from fake_backend import FakeBackend
 

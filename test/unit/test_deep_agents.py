@@ -16,14 +16,22 @@ from stable_baselines3.common.vec_env import VecCheckNan, VecMonitor
 from hopper_training import TASKS as HOPPER_TASKS
 from moving_cube_training import TASKS as CUBE_TASKS
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
-from robot_rl.agents import find_agent
-from robot_rl.deep import DeepPolicy, DeepTrainer, EpisodeSchedule, build_model, make_vec_env
-from robot_rl.evaluation import TrainedRun, evaluate
-from robot_rl.ledger import TrainingHooks
-from robot_rl.params import ParamError
-from robot_rl.results import DEEP_CHECKPOINT, RunDirectory
-from robot_rl.task import make_env
-from robot_rl.vector import worker_seeds
+from robot_rl import (
+    DEEP_CHECKPOINT,
+    DeepPolicy,
+    DeepTrainer,
+    EpisodeSchedule,
+    ParamError,
+    RunDirectory,
+    TrainedRun,
+    TrainingHooks,
+    build_model,
+    evaluate,
+    find_agent,
+    make_env,
+    make_vec_env,
+    worker_seeds,
+)
 from workspace_tools.ship import ship_run
 
 

@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from robot_rl.discretiser import Discretiser
+from robot_rl import Discretiser
 
 LOW = [-2.5, -1.57, -1.57, -2 * math.pi, 0.0, -1.6, -1.6, -1.6]
 HIGH = [2.5, 1.57, 1.57, 2 * math.pi, 14.16, 1.6, 1.6, 0.0]

@@ -6,8 +6,7 @@ import pybullet as p
 import pytest
 
 from moving_cube_training import TASKS
-from robot_rl import evaluation
-from robot_rl.backends import DirectBackend
+from robot_rl import DirectBackend, evaluation
 from workspace_tools.paths import REPO
 
 DEMO_RUN = REPO / "moving_cube_training" / "policies" / "demo"

@@ -23,10 +23,7 @@ from hopper_training.controller.trials import lean, load_sim_config, make_world,
 from hopper_training.robot import MONOPED
 from pybullet_sim.config import parse_robot_config
 from pybullet_sim.errors import ConfigError
-from robot_rl import evaluation
-from robot_rl.evaluation import ScriptedPolicy
-from robot_rl.results import aggregate
-from robot_rl.task import Episode
+from robot_rl import Episode, ScriptedPolicy, aggregate, evaluation
 
 UPRIGHT = (0.0, 0.0, 0.0, 1.0)
 

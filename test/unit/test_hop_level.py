@@ -22,9 +22,7 @@ from hopper_training.envs.hop_in_place import (
     offsets,
     thrust_knees,
 )
-from robot_rl import evaluation
-from robot_rl.params import ParamError
-from robot_rl.task import make_env
+from robot_rl import ParamError, evaluation, make_env
 
 PARAMS = HOP_IN_PLACE.default_params()
 

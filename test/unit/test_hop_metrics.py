@@ -8,7 +8,7 @@ from test_monoped import readings
 from hopper_training.envs.base import monoped_metrics
 from hopper_training.envs.stay_up import STAY_UP, MonopedEnv
 from hopper_training.hop_metrics import MIN_FLIGHT_S, HopTracker, fit_flight
-from robot_rl.task import Episode
+from robot_rl import Episode
 
 from fake_backend import FakeBackend
 

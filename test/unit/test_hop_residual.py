@@ -15,7 +15,7 @@ from hopper_training.envs.residual_forward import RESIDUAL_FORWARD
 from hopper_training.envs.residual_in_place import RESIDUAL_IN_PLACE
 from hopper_training.robot import base_rpy
 from hopper_training.scripted_policies import zero_residual
-from robot_rl.task import make_env
+from robot_rl import make_env
 
 PARAMS = RESIDUAL_IN_PLACE.default_params()
 

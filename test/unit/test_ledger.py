@@ -8,9 +8,7 @@ import re
 import pytest
 
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
-from robot_rl.ledger import RunLedger, TrainingHooks, TrainingState, restored_state
-from robot_rl.results import RunDirectory, aggregate
-from robot_rl.task import Episode
+from robot_rl import Episode, RunDirectory, RunLedger, TrainingHooks, TrainingState, aggregate, restored_state
 
 
 class Learner:

@@ -15,8 +15,7 @@ from hopper_training.params import MonopedParams
 from hopper_training.robot import CONTROLLERS, JOINTS, MONOPED
 from hopper_training.state import TiltStateKey, TutorialStateKey, monoped_state_key
 from pybullet_sim.readings import ContactPoint, ContactReading, ImuReading, JointStateReading, OdometryReading
-from robot_rl.backends import DirectBackend, Readings
-from robot_rl.params import ParamError, Point
+from robot_rl import DirectBackend, ParamError, Point, Readings
 
 from fake_backend import FakeBackend
 

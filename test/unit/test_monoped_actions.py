@@ -16,7 +16,7 @@ from hopper_training.envs.hop import HOP
 from hopper_training.envs.stay_up import STAY_UP, MonopedEnv
 from hopper_training.robot import CONTROLLERS, MONOPED
 from pybullet_sim.config import parse_robot_config
-from robot_rl.params import ParamError
+from robot_rl import ParamError
 
 from fake_backend import FakeBackend
 
@@ -157,7 +157,7 @@ def test_params_of_a_run_from_before_the_action_modes_keep_the_tutorials_rule():
 
 
 def test_a_vector_env_steps_continuous_targets_and_refuses_bad_ones():
-    from robot_rl.vector import make_vector_env
+    from robot_rl import make_vector_env
     p = STAY_UP.default_params().with_changes("test", action_mode="targets", nsteps=20)
     env = make_vector_env(STAY_UP, 2, backend="direct", seed=0, params=p)
     try:
@@ -173,8 +173,7 @@ def test_a_vector_env_steps_continuous_targets_and_refuses_bad_ones():
 
 
 def test_tabular_q_learning_refuses_continuous_actions(tmp_path):
-    from robot_rl.results import RunDirectory
-    from robot_rl.training import QLearningTrainer
+    from robot_rl import QLearningTrainer, RunDirectory
     p = STAY_UP.default_params().with_changes("test", action_mode="targets")
     env, _ = make_env("targets")
     run = RunDirectory.create(tmp_path, "monoped", p.to_mapping())

@@ -5,8 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from robot_rl.params import ParamError
-from robot_rl.training_node import MAX_ENVS_PER_CORE, NodeParams
+from robot_rl import MAX_ENVS_PER_CORE, NodeParams, ParamError
 
 
 def test_defaults():

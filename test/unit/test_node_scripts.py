@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from robot_rl.private_sim import default_sigint
+from robot_rl import default_sigint
 
 SCRIPTS = Path(__file__).resolve().parents[2] / "pybullet_sim" / "scripts"
 HOLD_IMPORT = "print('importing rospy', flush=True)\nimport time\ntime.sleep(60)\n"

@@ -7,7 +7,7 @@ from hopper_training.envs.stay_up import STAY_UP
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from pybullet_sim.readings import ContactPoint, ContactReading, ImuReading, JointStateReading, OdometryReading
 from pybullet_sim.sensors import pack_readings, unpack_readings
-from robot_rl.backends import DirectBackend
+from robot_rl import DirectBackend
 
 JOINTS = JointStateReading(1.25, ("a", "b"), (0.1, -0.2), (1e-300, 3.0), (0.0, -7.5))
 ODOMETRY = OdometryReading(1.25, "world", "base", (1.0, 2.0, 3.0), (0.0, 0.0, 0.6, 0.8), (0.1, 0.2, 0.3),

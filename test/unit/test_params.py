@@ -3,7 +3,7 @@ from dataclasses import FrozenInstanceError, dataclass
 
 import pytest
 
-from robot_rl.params import ParamError, Params, Point, load_yaml_file, param
+from robot_rl import ParamError, Params, Point, load_yaml_file, param
 
 SRC = "/ws/config/hopper.yaml"
 
@@ -153,7 +153,7 @@ def test_rosparams_yaml_tags_are_refused_and_never_evaluated(tmp_path, value):
 @pytest.mark.parametrize("text, value", [("12", 12), ("0.5", 0.5), ("true", True), ("2147483648", 2147483648),
                                          ("abc", "abc"), ("1e21", "1e21"), ("!radians 1", "!radians 1"), ("", "")])
 def test_launch_argument_text_is_typed_as_yaml_types_a_scalar_and_never_evaluated(text, value):
-    from robot_rl.params import parse_scalar
+    from robot_rl import parse_scalar
     assert parse_scalar(text) == value and type(parse_scalar(text)) is type(value)
 
 

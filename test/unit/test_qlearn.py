@@ -3,7 +3,7 @@ import json
 
 import pytest
 
-from robot_rl.qlearn import QLearn
+from robot_rl import QLearn
 
 ACTIONS = [0, 1, 2, 3, 4]
 

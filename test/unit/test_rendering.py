@@ -14,8 +14,7 @@ import hopper_training
 import moving_cube_training
 from pybullet_sim.config import parse_robot_config
 from pybullet_sim.errors import ConfigError
-from robot_rl.task import make_env
-from robot_rl.video import VideoRecorder, frame_every
+from robot_rl import VideoRecorder, frame_every, make_env
 
 CUBE, STAY_UP, HOP = (*moving_cube_training.TASKS, *hopper_training.TASKS)[:3]
 ODOMETRY = "p3d_base_controller"

@@ -6,8 +6,7 @@ import pytest
 import yaml
 from PIL import Image
 
-from robot_rl.qlearn import QLearn
-from robot_rl.results import EpisodeRecord, RunDirectory, aggregate, moving_average
+from robot_rl import EpisodeRecord, QLearn, RunDirectory, aggregate, moving_average
 
 HEADER = "episode,steps,return,epsilon,sim_time,wall_time\n"
 PARAMS = {"alpha": 0.1, "gamma": 0.8, "init_cube_pose": {"y": 0.0}}
@@ -164,8 +163,8 @@ def test_a_run_another_process_trains_is_refused_and_the_lock_dies_with_it(tmp_p
     import subprocess
     import sys
 
-    from robot_rl.results import RunLockedError
-    holder = subprocess.Popen([sys.executable, "-c", "import sys; from robot_rl.results import RunDirectory; "
+    from robot_rl import RunLockedError
+    holder = subprocess.Popen([sys.executable, "-c", "import sys; from robot_rl import RunDirectory; "
                                f"RunDirectory.create({str(tmp_path)!r}, 'hopper', {{}}, run_name='r1')"
                                ".checkpoint({'episode': 0}); print('locked', flush=True); sys.stdin.read()"],
                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)

@@ -23,7 +23,7 @@ from pybullet_sim.validation import (
     param,
 )
 from pybullet_sim.world import DEFAULT_GRAVITY, World
-from robot_rl.backends import DirectBackend, Readings, SimStateError, non_finite_problem
+from robot_rl import DirectBackend, Readings, SimStateError, non_finite_problem
 
 REST = ((0.0, 0.0, 0.5), (0.0, 0.0, 0.0, 1.0), (0.0,) * 3, (0.0,) * 3)
 
@@ -160,7 +160,7 @@ def test_the_ros_backend_refuses_an_answer_with_a_non_finite_number():
     from pybullet_sim.msg import PackedReadings
     from pybullet_sim.ros.client import SimConnectionError
     from pybullet_sim.sensors import pack_readings
-    from robot_rl.backends import RosBackend
+    from robot_rl import RosBackend
 
     backend = RosBackend.__new__(RosBackend)  # the answer's reader alone, without the connection
     backend._sensor_names, backend._sensor_types = ["odom"], ["p3d"]

@@ -3,11 +3,16 @@
 import dataclasses
 
 from hopper_training import TASKS as HOPPER_TASKS
-from robot_rl.evaluation import EVAL_INITIAL_TILT, TrainedRun, evaluate
-from robot_rl.ledger import TrainingHooks
-from robot_rl.results import RunDirectory
-from robot_rl.task import find_task, make_env
-from robot_rl.training import QLearningTrainer
+from robot_rl import (
+    EVAL_INITIAL_TILT,
+    QLearningTrainer,
+    RunDirectory,
+    TrainedRun,
+    TrainingHooks,
+    evaluate,
+    find_task,
+    make_env,
+)
 from workspace_tools.sweep import TrialJob, _evaluate
 
 STAY_UP = find_task(HOPPER_TASKS, "stay_up")

@@ -7,8 +7,7 @@ import pytest
 import yaml
 
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
-from robot_rl.agents import find_agent
-from robot_rl.params import MAX_COUNT
+from robot_rl import MAX_COUNT, find_agent
 from workspace_tools import sweep_spec
 from workspace_tools.sweep_spec import SweepError, parse_seeds, parse_sweep, trial_config, trial_name
 from workspace_tools.sweep_table import TrialResult, plot_curves, table_csv, table_markdown

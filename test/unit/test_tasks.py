@@ -10,7 +10,7 @@ from gymnasium.utils.env_checker import check_env
 
 import hopper_training
 import moving_cube_training
-from robot_rl.task import TASKS, Episode, find_task, make_env
+from robot_rl import TASKS, Episode, find_task, make_env
 
 ALL_TASKS = [*moving_cube_training.TASKS, *hopper_training.TASKS]
 IDS = [task.env_id for task in ALL_TASKS]

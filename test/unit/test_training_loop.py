@@ -8,10 +8,7 @@ import pytest
 import yaml
 
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
-from robot_rl.ledger import TrainingHooks
-from robot_rl.results import EpisodeRecord, RunDirectory
-from robot_rl.task import make_env
-from robot_rl.training import QLearningTrainer
+from robot_rl import EpisodeRecord, QLearningTrainer, RunDirectory, TrainingHooks, make_env
 
 HEADER = ["episode", "steps", "return", "epsilon", "sim_time", "wall_time", "y_distance", "success"]
 

@@ -15,8 +15,7 @@ from gymnasium.vector import AutoresetMode
 
 from hopper_training.envs.stay_up import STAY_UP
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
-from robot_rl.task import make_env
-from robot_rl.vector import EnvWorkers, WorkerError, as_env_actions, checked_actions, make_vector_env, worker_seeds
+from robot_rl import EnvWorkers, WorkerError, as_env_actions, checked_actions, make_env, make_vector_env, worker_seeds
 
 
 def alive(pid):
@@ -126,7 +125,7 @@ def test_an_exception_in_a_worker_names_it_and_the_others_close_cleanly():
 ORPHANED_WORKERS = """
 import sys
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
-from robot_rl.vector import EnvWorkers
+from robot_rl import EnvWorkers
 if __name__ == "__main__":
     workers = EnvWorkers(ONE_DISK_WALK, 2, backend="direct", seed=0)
     print(*[info["pid"] for info in workers.worker_info], flush=True)
@@ -229,9 +228,7 @@ def test_a_worker_that_cannot_make_its_env_fails_the_start_with_its_error(tmp_pa
 
 
 def vector_train(tmp_path, nepisodes, resume=False, log=None, run_name="run"):
-    from robot_rl.ledger import TrainingHooks
-    from robot_rl.results import RunDirectory
-    from robot_rl.vector_training import VectorQLearningTrainer
+    from robot_rl import RunDirectory, TrainingHooks, VectorQLearningTrainer
     params = short(ONE_DISK_WALK, 15).with_changes("test", nepisodes=nepisodes)
     run = RunDirectory(tmp_path / "moving_cube" / run_name) if resume else \
         RunDirectory.create(tmp_path, "moving_cube", params.to_mapping(), ONE_DISK_WALK.metric_names, run_name)

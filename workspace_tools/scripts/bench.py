@@ -74,8 +74,7 @@ from typing import Any
 
 from hopper_training.envs.stay_up import STAY_UP
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
-from robot_rl.params import TaskParams
-from robot_rl.task import TaskSpec, make_env
+from robot_rl import TaskParams, TaskSpec, make_env
 from workspace_tools.processes import Processes, RosMaster, launch_args
 
 SECTIONS = ("lockstep", "scaling", "deep", "gazebo", "training", "distributed", "sweeps")
@@ -209,7 +208,7 @@ def worker_vector(robot: str, backend: str, n: int, steps: int, running_step: fl
     masters and sim nodes; with Ray actors, every process of the LoopbackCluster marked `cluster_mark`)."""
     import numpy as np
 
-    from robot_rl.vector import make_vector_env
+    from robot_rl import make_vector_env
     env = make_vector_env(ROBOTS[robot].task, n, backend=backend, seed=0, params=_params(robot, running_step),
                           cluster=cluster or None)
     try:
@@ -237,7 +236,7 @@ def worker_recovery(robot: str, steps: int, running_step: float, folder: str) ->
     left after it ends."""
     import numpy as np
 
-    from robot_rl.vector import WorkerRestarted, make_vector_env
+    from robot_rl import WorkerRestarted, make_vector_env
     from workspace_tools.ray_cluster import LoopbackCluster, process_name
     cluster = LoopbackCluster(Path(folder), nodes=2, cpus_per_node=1, head_cpus=2)
     try:
@@ -277,10 +276,7 @@ def worker_qlearn(robot: str, n: int, steps: int, running_step: float) -> dict:
     """robot_rl.vector_training's tabular Q-learning from n envs over ROS, as `./ws run envs:=N` trains
     (episodes.csv written) but with no log lines and no checkpoint until the end, which is not timed:
     env steps/s for `steps` env steps."""
-    from robot_rl.agents import find_agent
-    from robot_rl.ledger import TrainingHooks
-    from robot_rl.results import RunDirectory
-    from robot_rl.vector import make_vector_env
+    from robot_rl import RunDirectory, TrainingHooks, find_agent, make_vector_env
     task = ROBOTS[robot].task
     params = _params(robot, running_step).with_changes("bench", nepisodes=10**9)
     env: Any = make_vector_env(task, n, backend="ros", seed=0, params=params)  # the trainer takes it as its env
@@ -306,8 +302,7 @@ def worker_deep(robot: str, backend: str, steps: int, running_step: float) -> di
     """Stable-Baselines3 DQN (robot_rl/config/dqn.yaml) learning `steps` env steps on one env."""
     from stable_baselines3.common.vec_env import DummyVecEnv
 
-    from robot_rl.agents import find_agent
-    from robot_rl.deep import NetworkParams, build_model
+    from robot_rl import NetworkParams, build_model, find_agent
     if backend == "ros":
         import rospy
         rospy.init_node("bench_deep_client")
@@ -333,7 +328,7 @@ def worker_gazebo_style(robot: str, steps: int, running_step: float) -> dict:
     import numpy as np
     import rospy
 
-    from robot_rl.backends import GazeboStyleBackend
+    from robot_rl import GazeboStyleBackend
 
     rospy.init_node("bench_gazebo_style_client")
     env = _make_env(robot, GazeboStyleBackend(ROBOTS[robot].task.robot), running_step)

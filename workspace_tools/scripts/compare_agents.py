@@ -33,10 +33,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from robot_rl.agents import AGENTS, AgentSpec
-from robot_rl.params import ParamError
-from robot_rl.results import RunDirectory, moving_average
-from robot_rl.task import TaskSpec, find_task, make_env
+from robot_rl import AGENTS, AgentSpec, ParamError, RunDirectory, TaskSpec, find_task, make_env, moving_average
 from workspace_tools.processes import Processes, RosMaster, launch_args
 from workspace_tools.sweep_spec import ROBOTS
 

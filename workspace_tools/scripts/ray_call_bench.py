@@ -153,8 +153,7 @@ def _env_rates(ray: Any, cluster: Any, steps: int) -> dict[str, tuple[float, flo
     from ray.dag import InputNode, MultiOutputNode
 
     from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
-    from robot_rl.ray_workers import RayEnvWorkers
-    from robot_rl.vector import EnvWorkers
+    from robot_rl import EnvWorkers, RayEnvWorkers
 
     def rate(step: Any, meter: CpuMeter) -> tuple[float, float]:
         rng = np.random.default_rng(0)

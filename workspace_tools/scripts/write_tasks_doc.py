@@ -22,8 +22,7 @@ from typing import Any
 
 import hopper_training
 import moving_cube_training
-from robot_rl.params import Params
-from robot_rl.task import TASKS, TaskSpec, package_path
+from robot_rl import TASKS, Params, TaskSpec, package_path
 
 REGENERATE = "./ws exec rosrun workspace_tools write_tasks_doc.py"
 PAGE = Path("docs", "reference", "tasks.md")  # the page, relative to the repository

@@ -9,7 +9,7 @@ from typing import Any
 
 import gymnasium
 
-from robot_rl.task import TaskSpec, register_tasks
+from robot_rl import TaskSpec, register_tasks
 
 from .envs.hop import HOP
 from .envs.hop_in_place import HOP_IN_PLACE

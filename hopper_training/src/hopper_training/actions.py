@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from robot_rl.backends import Readings
+from robot_rl import Readings
 
 from .params import ACTION_MODES, MonopedParams
 from .robot import JOINTS, joint_positions

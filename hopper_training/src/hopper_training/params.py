@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from robot_rl.params import ParamError, Params, Point, TaskParams, param
+from robot_rl import ParamError, Params, Point, TaskParams, param
 
 from .robot import JOINTS, MONOPED
 

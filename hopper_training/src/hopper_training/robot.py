@@ -5,8 +5,7 @@ import math
 
 from tf.transformations import euler_from_quaternion
 
-from robot_rl.backends import Readings
-from robot_rl.task import RobotSpec
+from robot_rl import Readings, RobotSpec
 
 CONTROLLERS = ("haa_joint_position_controller", "hfe_joint_position_controller", "kfe_joint_position_controller")
 JOINTS = ("haa_joint", "hfe_joint", "kfe_joint")

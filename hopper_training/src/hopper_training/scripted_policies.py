@@ -5,8 +5,7 @@ from typing import Any
 
 import numpy as np
 
-from robot_rl.evaluation import ConstantAction, ScriptedPolicy, random_actions
-from robot_rl.task import TaskSpec
+from robot_rl import ConstantAction, ScriptedPolicy, TaskSpec, random_actions
 
 from .controller.policy import ControllerPolicy
 from .controller.policy import controller_params as step_controller_params

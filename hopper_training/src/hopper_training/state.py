@@ -6,8 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from robot_rl.discretiser import Discretiser
-from robot_rl.task import StateKey
+from robot_rl import Discretiser, StateKey
 
 from .params import MonopedParams
 from .robot import JOINTS, MONOPED

@@ -5,7 +5,7 @@ Importing this package registers MovingCubeOneDiskWalk-v0 with gymnasium:
 """
 from typing import Any
 
-from robot_rl.task import TaskSpec, register_tasks
+from robot_rl import TaskSpec, register_tasks
 
 from .envs.one_disk_walk import ONE_DISK_WALK
 

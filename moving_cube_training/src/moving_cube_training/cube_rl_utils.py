@@ -5,7 +5,7 @@ wheel, and computes the state, the done flag and the reward exactly as the tutor
 seed's class ported to Python 3; the differences are marked with comments:
 
 * every wait is bounded (``timeout`` seconds of wall time) and fails with a
-  :class:`pybullet_sim.client.SimConnectionError` that names the topic and what to check;
+  :class:`pybullet_sim.ros.client.SimConnectionError` that names the topic and what to check;
 * the seed's odometry wait tested the joint-states variable, so odom was never waited for (fixed);
 * the messages received while checking the sensors are the initial ``joints`` / ``odom``, so
   :meth:`CubeRLUtils.get_cube_state` works before the first subscriber callback.

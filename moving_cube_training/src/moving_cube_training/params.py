@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from robot_rl.params import Point, TaskParams, param
+from robot_rl import Point, TaskParams, param
 
 N_ACTIONS = 5
 

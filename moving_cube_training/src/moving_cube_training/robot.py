@@ -1,7 +1,7 @@
 """The moving cube robot: its RobotSpec and its wheel's controller, joint and odometry sensor names."""
 from __future__ import annotations
 
-from robot_rl.task import RobotSpec
+from robot_rl import RobotSpec
 
 WHEEL_CONTROLLER = "inertia_wheel_roll_joint_velocity_controller"
 ODOMETRY_SENSOR = "p3d_base_controller"

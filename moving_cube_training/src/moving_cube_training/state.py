@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from robot_rl.discretiser import Discretiser
+from robot_rl import Discretiser
 
 from .params import CubeParams
 

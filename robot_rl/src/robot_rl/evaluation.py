@@ -22,7 +22,7 @@ is [LOW, HIGH], or null for a task without it.
 params as that policy needs them; its JSON has "policy": NAME and NAME: {...} with the keys of "greedy".
 `--policy constant --action N`, on every robot, takes action N every step (a task with Discrete actions):
 the trivial baselines a learned policy must beat besides random ones; its JSON adds "action": N.
-`--video` records the first `--video-episodes` (3) greedy episodes to an mp4 (robot_rl.video: real
+`--video` records the first `--video-episodes` (3) greedy episodes to an mp4 (robot_rl.runs.video: real
 time, at most 30 frames/s, from the sim's camera that follows the robot) and adds "video": {"path",
 "episodes", "frames", "fps"} to the JSON; recording changes none of the numbers.
 The direct backend (default) needs nothing running; `--backend ros` needs the task's sim node.
@@ -39,42 +39,48 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import gymnasium
 import numpy as np
 import yaml
 
 from pybullet_sim.ros.client import SimConnectionError
 
-from .agents import agent_of, checkpoint_of
-from .backends import SimStateError
+from .agents.registry import AgentSpec, agent_of, checkpoint_of
+from .envs.backends.base import SimStateError
+from .envs.backends.factory import over_ros
+from .envs.backends.ros import init_ros_node
 from .params import ParamError
-from .results import RunDirectory, aggregate
+from .policies import ScriptedPolicy, constant_policy, random_actions
+from .runs.loaded import LoadedRun
+from .runs.results import RunDirectory, aggregate
+from .runs.video import VideoRecorder
 from .task import Episode, TaskSpec, episode_duration, find_task, make_env
-from .video import VideoRecorder
 
 MAX_VIDEO_SIDE = 4096
 EVAL_INITIAL_TILT = (0.02, 0.05)  # rad: evaluation episodes start leaning this much, where the task can
 
 
-class TrainedRun:
+class TrainedRun(LoadedRun):
     """A run's agent, task, params and greedy policy, checked against each other. `path`: a run folder
     or its checkpoint file."""
 
+    agent: AgentSpec
+
     def __init__(self, path: Path, tasks: Sequence[TaskSpec[Any]]):
-        self.path = checkpoint_of(path) if path.is_dir() else path
-        checkpoint = RunDirectory(self.path.parent, self.path.name).load_checkpoint()
+        path = checkpoint_of(path) if path.is_dir() else path
+        checkpoint = RunDirectory(path.parent, path.name).load_checkpoint()
         try:
-            self.agent = agent_of(checkpoint)
-            self.task = find_task(list(tasks), checkpoint["task"])
+            agent = agent_of(checkpoint)
+            task = find_task(list(tasks), checkpoint["task"])
         except (KeyError, TypeError) as error:
-            raise ValueError(f"{self.path}: not a training checkpoint (missing {error})") from None
-        self.params_file = self.path.with_name("params.yaml")
+            raise ValueError(f"{path}: not a training checkpoint (missing {error})") from None
+        params_file = path.with_name("params.yaml")
         try:
-            document = yaml.safe_load(self.params_file.read_text(encoding="utf-8"))
+            document = yaml.safe_load(params_file.read_text(encoding="utf-8"))
         except (OSError, yaml.YAMLError) as error:
-            raise ValueError(f"{self.params_file}: {error}") from None
-        self.params = self.task.params_type.from_mapping(document or {}, str(self.params_file))
-        self._policy = self.agent.greedy_policy(self, checkpoint)
+            raise ValueError(f"{params_file}: {error}") from None
+        params = task.params_type.from_mapping(document or {}, str(params_file))
+        super().__init__(path, agent, task, params_file, params)
+        self._policy = agent.greedy_policy(self, checkpoint)
 
     def policy(self, env: Any, seed: int) -> Callable[[np.ndarray], int]:
         """The greedy policy (tie breaks seeded with `seed`); `env` shapes a deep agent's model."""
@@ -89,42 +95,6 @@ class VideoRequest:
     episodes: int = 3
     width: int = 320
     height: int = 240
-
-
-@dataclass(frozen=True)
-class ScriptedPolicy:
-    """A hand-written policy a robot package offers to evaluate.py (`--policy NAME`): `env_params` turns a
-    task's params into those its env needs; `build(env, speed)` makes the policy (observation -> action),
-    which may read env.unwrapped.readings and, if it has a reset(), is reset at each episode's start."""
-
-    env_params: Callable[[TaskSpec[Any], Any], Any]
-    build: Callable[[Any, float], Callable[[np.ndarray], Any]]
-
-
-class ConstantAction:
-    """A policy that always takes one action: the trivial baselines (`--policy constant --action N`, and a robot
-    package's do-nothing action)."""
-
-    def __init__(self, action: int):
-        self.action = action
-
-    def __call__(self, observation: np.ndarray) -> int:
-        return self.action
-
-
-def constant_policy(action: int) -> ScriptedPolicy:
-    """`--policy constant --action N`: action N every step, on any task with Discrete actions."""
-    def build(env: Any, speed: float) -> ConstantAction:
-        space = env.action_space
-        if not isinstance(space, gymnasium.spaces.Discrete):
-            raise ValueError(f"--policy constant needs Discrete actions; {env.unwrapped.task.env_id}'s are {space}")
-        if not 0 <= action < int(space.n):
-            raise ValueError(f"--action must be from 0 to {int(space.n) - 1} ({env.unwrapped.task.env_id}'s "
-                             f"Discrete({int(space.n)})), got {action}")
-        if speed != 0.0:
-            raise ValueError(f"--policy constant takes no --speed, got {speed}")
-        return ConstantAction(action)
-    return ScriptedPolicy(lambda task, params: params, build)
 
 
 def run_episodes(env: Any, policy: Callable[[np.ndarray], Any], episodes: int, task: TaskSpec[Any],
@@ -150,13 +120,6 @@ def run_episodes(env: Any, policy: Callable[[np.ndarray], Any], episodes: int, t
         for name, value in task.metrics(episode).items():
             metrics[name].append(value)
     return {**aggregate({"return": returns}), **aggregate(metrics)}
-
-
-def random_actions(space: Any, rng: np.random.Generator) -> Callable[[np.ndarray], Any]:
-    """Uniformly random actions of a Discrete or Box action space, drawn from `rng`."""
-    if isinstance(space, gymnasium.spaces.Discrete):
-        return lambda _: int(rng.integers(int(space.n)))
-    return lambda _: rng.uniform(space.low, space.high).astype(space.dtype)
 
 
 def default_initial_tilt(params: Any) -> tuple[float, float] | None:
@@ -286,8 +249,7 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
     except ModuleNotFoundError as error:  # a deep run without requirements-deep.txt
         parser.exit(1, f"evaluate.py: {args.run} is a deep agent's run and {error.name} is not installed: "
                        f"./ws setup deep installs requirements-deep.txt\n")
-    if args.backend == "ros":
-        from .backends import init_ros_node
+    if over_ros(args.backend):
         try:
             init_ros_node(node_name)
         except SimConnectionError as error:
@@ -323,8 +285,7 @@ def _main_scripted(parser: argparse.ArgumentParser, args: argparse.Namespace, ta
         parser.exit(2, f"evaluate.py: {error}\n")
     horizon_s = args.horizon_s if args.horizon_s is not None else task.eval_horizon_s
     try:
-        if args.backend == "ros":
-            from .backends import init_ros_node
+        if over_ros(args.backend):
             init_ros_node(node_name)
         report = evaluate_scripted(task, args.policy, scripted, params, args.episodes, horizon_s, args.backend,
                                    args.seed, args.speed)

@@ -25,7 +25,7 @@ from std_msgs.msg import Float64
 from pybullet_sim.ros.shutdown import shutdown_on_signals
 
 from .atomic import write_bytes_atomic
-from .results import MOVING_AVERAGE, moving_average
+from .runs.plots import MOVING_AVERAGE, moving_average
 
 REDRAW_S = 0.5
 

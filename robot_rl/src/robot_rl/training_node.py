@@ -9,10 +9,10 @@ resolved against ~launch_dir, the folder roslaunch ran in (roslaunch runs nodes 
 trained, video.mp4 next to learning_curve.png shows one greedy episode of the final policy (at most
 TRAINING_VIDEO_S of sim time, rendered on the direct backend, so the ROS sim is not needed). With
 ~agent dqn, ppo or sac: the runs go to <results name>-<agent>/; with ~envs N > 1 the env is N workers, each
-with a master and a sim of its own (robot_rl.vector; the launch's own sim then idles); with ~cluster ("ray" or
-an address) the workers are Ray actors on that cluster's nodes (robot_rl.ray_workers), even for one env.
+with a master and a sim of its own (robot_rl.workers; the launch's own sim then idles); with ~cluster ("ray" or
+an address) the workers are Ray actors on that cluster's nodes (robot_rl.workers.ray_actors), even for one env.
 
-SIGINT or SIGTERM (Ctrl-C, roslaunch shutting down) stops the run cleanly (pybullet_sim.shutdown: a rospy
+SIGINT or SIGTERM (Ctrl-C, roslaunch shutting down) stops the run cleanly (pybullet_sim.ros.shutdown: a rospy
 shutdown, which ends every wait on the sim at once, and a request to stop, never an exception at whatever
 line is running): the episode under way is abandoned, a checkpoint and summary.json (marked incomplete)
 are written, and the node exits 130.
@@ -35,14 +35,14 @@ from std_msgs.msg import Float64
 from pybullet_sim.ros.client import SimConnectionError
 from pybullet_sim.ros.shutdown import shutdown_on_signals, shutting_down
 
-from .agents import DEFAULT_AGENT, AgentSpec, Trainer, find_agent
-from .cluster import ClusterError
+from .agents.registry import DEFAULT_AGENT, AgentSpec, Trainer, find_agent
 from .evaluation import TrainedRun, VideoRequest, evaluate
-from .ledger import TrainingHooks
 from .params import ParamError, Params, TaskParams, load_yaml_file, param, parse_scalar
-from .results import RunDirectory
+from .runs.ledger import TrainingHooks
+from .runs.results import RunDirectory
 from .task import TaskSpec, find_task, make_env
-from .vector import WorkerError
+from .workers.base import WorkerError
+from .workers.cluster import ClusterError
 
 INTERRUPTED = 130  # the shell's code for a command ended by SIGINT
 TRAINING_VIDEO_S = 10.0  # sim seconds at most in a training run's video

@@ -14,7 +14,7 @@ from typing import TypeVar
 
 import rosgraph
 
-from robot_rl.private_sim import default_sigint, free_port, stop_process
+from robot_rl import default_sigint, free_port, stop_process
 from workspace_tools.launch_reaper import processes_with
 
 T = TypeVar("T")

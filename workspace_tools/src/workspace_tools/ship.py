@@ -16,7 +16,7 @@ import zipfile
 from io import BytesIO
 from pathlib import Path
 
-from robot_rl.atomic import write_bytes_atomic, write_json_atomic
+from robot_rl import write_bytes_atomic, write_json_atomic
 
 RESULTS = ("params.yaml", "episodes.csv", "learning_curve.png", "summary.json")
 TABULAR_CHECKPOINT, DEEP_CHECKPOINT, MODEL = "qtable.json", "agent.json", "model.zip"

@@ -55,11 +55,16 @@ from typing import Any
 
 import yaml
 
-from robot_rl.atomic import write_json_atomic, write_text_atomic
-from robot_rl.cluster import ClusterError
-from robot_rl.ledger import format_duration
-from robot_rl.private_sim import free_port, prepare_child, stop_process
-from robot_rl.results import RunDirectory
+from robot_rl import (
+    ClusterError,
+    RunDirectory,
+    format_duration,
+    free_port,
+    prepare_child,
+    stop_process,
+    write_json_atomic,
+    write_text_atomic,
+)
 from workspace_tools import sweep_spec
 from workspace_tools.processes import launch_args
 from workspace_tools.sweep_spec import SweepError, SweepSpec, Trial, format_value, parse_sweep, trial_config
@@ -163,7 +168,7 @@ def _evaluate(job: TrialJob) -> dict[str, Any]:
     existing = _read_json(path)
     if existing is not None:
         return existing
-    from robot_rl.evaluation import TrainedRun, default_initial_tilt, evaluate
+    from robot_rl import TrainedRun, default_initial_tilt, evaluate
     tasks = importlib.import_module(job.package).TASKS
     run = TrainedRun(job.run_dir, tasks)
     report = evaluate(run, episodes=job.eval_episodes, horizon_s=run.task.eval_horizon_s, backend="direct",
@@ -306,7 +311,7 @@ def _open_sweep(spec: SweepSpec) -> tuple[SweepSpec, Path]:
 def _start_ray(spec: SweepSpec, temp_dir: str) -> None:
     """Join `spec.cluster` (robot_rl.cluster.connect: "ray" or HOST:PORT), else start Ray on this machine."""
     if spec.cluster:
-        from robot_rl.cluster import connect
+        from robot_rl import connect
         connect(spec.cluster)
         return
     import ray

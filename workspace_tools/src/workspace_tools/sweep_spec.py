@@ -28,9 +28,19 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from robot_rl.agents import DEFAULT_AGENT, AgentSpec, find_agent
-from robot_rl.params import MAX_COUNT, MAX_SEED, ParamError, Params, load_yaml_file, parse_scalar
-from robot_rl.task import TaskSpec, find_task
+from robot_rl import (
+    DEFAULT_AGENT,
+    MAX_COUNT,
+    MAX_SEED,
+    AgentSpec,
+    ParamError,
+    Params,
+    TaskSpec,
+    find_agent,
+    find_task,
+    load_yaml_file,
+    parse_scalar,
+)
 
 ROBOTS = {"cube": "moving_cube_training", "hopper": "hopper_training"}  # as ./ws run names them
 DEFAULT_ROBOT = "cube"

@@ -18,8 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from robot_rl.atomic import write_bytes_atomic, write_text_atomic
-from robot_rl.results import MOVING_AVERAGE, moving_average
+from robot_rl import MOVING_AVERAGE, moving_average, write_bytes_atomic, write_text_atomic
 
 
 @dataclass(frozen=True)

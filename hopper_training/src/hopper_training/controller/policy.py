@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from robot_rl.task import TaskSpec
+from robot_rl import TaskSpec
 
 from ..robot import CONTACT_SENSOR, IMU_SENSOR, ODOMETRY_SENSOR
 from .core import HopController, HopGains, hop_input

@@ -11,9 +11,7 @@ from gymnasium import spaces
 from tf.transformations import quaternion_from_matrix
 
 from pybullet_sim.readings import FrameState
-from robot_rl.backends import Readings
-from robot_rl.env_base import Placement, RobotEnv
-from robot_rl.task import Episode, MetricValue
+from robot_rl import Episode, MetricValue, Placement, Readings, RobotEnv
 
 from ..actions import ACTION_INTERFACES, ActionInterface
 from ..hop_metrics import HopTracker

@@ -22,10 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robot_rl.backends import Readings
-from robot_rl.env_base import StepOutcome
-from robot_rl.params import param
-from robot_rl.task import TaskSpec
+from robot_rl import Readings, StepOutcome, TaskSpec, param
 
 from ..params import MonopedParams
 from ..robot import MONOPED, ODOMETRY_SENSOR

@@ -11,9 +11,7 @@ from typing import Any
 import gymnasium
 import numpy as np
 
-from robot_rl.backends import Readings
-from robot_rl.params import param
-from robot_rl.task import Episode, MetricValue
+from robot_rl import Episode, MetricValue, Readings, param
 
 from ..controller.core import HopController, HopGains, Phase, hop_input
 from ..params import MonopedParams

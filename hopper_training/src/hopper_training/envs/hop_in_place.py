@@ -63,11 +63,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from robot_rl.backends import Readings
-from robot_rl.discretiser import Discretiser
-from robot_rl.env_base import StepOutcome
-from robot_rl.params import ParamError, param
-from robot_rl.task import StateKey, TaskSpec
+from robot_rl import Discretiser, ParamError, Readings, StateKey, StepOutcome, TaskSpec, param
 
 from ..robot import MONOPED, ODOMETRY_SENSOR, base_rpy
 from .hop_cycle import HopCycleEnv, HopCycleParams, hop_cycle_metrics

@@ -39,10 +39,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from robot_rl.backends import Readings
-from robot_rl.env_base import StepOutcome
-from robot_rl.params import param
-from robot_rl.task import TaskSpec
+from robot_rl import Readings, StepOutcome, TaskSpec, param
 
 from ..controller.core import HopGains
 from ..robot import IMU_SENSOR, MONOPED, ODOMETRY_SENSOR, base_rpy

@@ -71,9 +71,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from robot_rl.backends import Readings
-from robot_rl.env_base import StepOutcome
-from robot_rl.task import TaskSpec
+from robot_rl import Readings, StepOutcome, TaskSpec
 
 from ..params import MonopedParams
 from ..robot import MONOPED, ODOMETRY_SENSOR, base_rpy, contact_force

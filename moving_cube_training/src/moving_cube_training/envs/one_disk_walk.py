@@ -40,9 +40,7 @@ import numpy as np
 from gymnasium import spaces
 from tf.transformations import euler_from_quaternion
 
-from robot_rl.backends import Readings
-from robot_rl.env_base import RobotEnv, StepOutcome
-from robot_rl.task import Episode, MetricValue, TaskSpec
+from robot_rl import Episode, MetricValue, Readings, RobotEnv, StepOutcome, TaskSpec
 
 from ..params import N_ACTIONS, CubeParams
 from ..robot import MOVING_CUBE, ODOMETRY_SENSOR, WHEEL_CONTROLLER, WHEEL_JOINT

@@ -1,6 +1,7 @@
-"""Tabular Q-learning from N envs into one Q-table: the vector path beside QLearningTrainer's single env.
+"""Tabular Q-learning from N envs into one Q-table: the vector path beside QLearningTrainer's single env,
+and the agent registry's `make_trainer`, which picks one of the two.
 
-The N envs (the workers of a robot_rl.vector.RobotVectorEnv, autoreset SAME_STEP) step side by side:
+The N envs (the workers of a robot_rl.workers.vector_env.RobotVectorEnv, autoreset SAME_STEP) step side by side:
 the trainer takes their replies in env order, round and round, learns each transition, and sends that
 env its next action at once (chosen from the one table with the one seeded RNG), before it writes an
 ended episode down. The envs are not stepped together as a vector env's are, but an env's reply waits
@@ -15,17 +16,25 @@ table before the next action is chosen). A checkpoint holds the Q-table with the
 under way at that moment: resume continues from it (those episodes start anew), so with N > 1 a
 resumed run is not bit-for-bit an uninterrupted one. When the envs fail or the run is stopped, the
 Q-table as it is and a summary marked incomplete are saved. An env whose worker was lost and replaced
-(a Ray actor restarted on another node: robot_rl.ray_workers, WorkerRestarted) starts the episode it had
+(a Ray actor restarted on another node: robot_rl.workers.ray_actors, WorkerRestarted) starts the episode it had
 under way anew from the new worker's first observation, as after a resume; no episode is lost or repeated.
 """
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
-from .task import Episode, episode_duration
-from .training import QLearningTrainer
-from .vector import RobotVectorEnv, WorkerRestarted
+import gymnasium
+
+from ...params import Params, TaskParams
+from ...runs.ledger import TrainingHooks
+from ...runs.results import RunDirectory
+from ...task import Episode, TaskSpec, episode_duration
+from ...workers.base import WorkerRestarted
+from ...workers.vector_env import RobotVectorEnv
+from ..registry import AgentSpec
+from .trainer import QLearningTrainer
 
 
 class VectorQLearningTrainer(QLearningTrainer):
@@ -104,3 +113,13 @@ class VectorQLearningTrainer(QLearningTrainer):
                 if not checkpoint_due:  # while env i steps
                     ledger.episode_done(*ended)
             ledger.log_progress_if_due()
+
+
+def make_trainer(agent: AgentSpec, env: gymnasium.Env[Any, Any], task: TaskSpec[Any], params: TaskParams,
+                 run: RunDirectory, hooks: TrainingHooks, resume: bool, agent_params: Params | None,
+                 max_steps: int | None, agent_config: Path | None) -> QLearningTrainer:
+    """The tabular trainer of `env`: one env, or robot_rl.workers.vector_env's N (VectorQLearningTrainer); its
+    params are the task's (no agent_params, agent_config), its budget nepisodes (no max_steps)."""
+    if isinstance(env, gymnasium.vector.VectorEnv):
+        return VectorQLearningTrainer(env, task, params, run, hooks, resume)
+    return QLearningTrainer(env, task, params, run, hooks, resume)

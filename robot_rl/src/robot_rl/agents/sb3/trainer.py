@@ -1,16 +1,10 @@
-"""Deep agents: Stable-Baselines3's DQN, PPO and SAC on any task, over ROS or direct, with one env or N.
+"""Deep agents' training: Stable-Baselines3's DQN, PPO and SAC on any task, over ROS or direct, with one env or N.
 
 Needs requirements-deep.txt (torch, stable-baselines3), which ./ws installs the first time a deep agent
 is asked for. Agents run on the CPU with one torch thread (the envs' workers need the other core).
+The params of each agent are robot_rl.agents.sb3.params', its N envs robot_rl.agents.sb3.vec_env's.
 
-- `RobotVecEnv`: a Stable-Baselines3 VecEnv over `robot_rl.vector.EnvWorkers` (one process per env; over
-  ROS each with its own master and sim node). SB3's conventions: done = terminated or truncated, the
-  last observation in info["terminal_observation"], info["TimeLimit.truncated"], the env reset at once.
-  `seed(s)` gives worker i the i-th seed numpy's SeedSequence(s) derives, as the gymnasium face does.
-- `DqnParams`, `PpoParams`, `SacParams`: each agent's params (robot_rl/config/<agent>.yaml) and its SB3
-  algorithm. DQN needs a task with Discrete actions, SAC one with Box actions, PPO takes either; an action
-  travels to the env as the space holds it (an int, or a float32 array). `reward_scale` (every agent's)
-  multiplies the rewards the agent learns from (`ScaledRewards`); the run's returns stay the task's.
+- `ScaledRewards`: the rewards the agent learns from, times `reward_scale`; the run's returns stay the task's.
 - `DeepTrainer`: trains until `nepisodes` episodes have ended (or `max_steps` env steps: then DQN's
   exploration falls over a share of those steps, SB3's way; without it over a share of the episodes,
   like tabular Q-learning's epsilon, by `EpisodeSchedule`); its RunLedger writes the run as tabular
@@ -25,23 +19,21 @@ is asked for. Agents run on the CPU with one torch thread (the envs' workers nee
   pickles them) and the optimiser's RNG streams, so a resumed DQN or SAC first collects
   `learning_starts` new transitions with its current policy before it trains again, and a resumed run
   is not bit-for-bit the uninterrupted one; PPO's rollout under way at the checkpoint is collected anew.
-- `make_trainer`, `make_vec_env`, `greedy_policy`: the agent registry's entry points (robot_rl.agents);
-  `greedy_policy` is a trained run's deterministic policy, for evaluate.py and the training video.
+- `make_trainer` is the agent registry's entry point (robot_rl.agents.registry).
 """
 from __future__ import annotations
 
 import dataclasses
 import hashlib
 import math
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import gymnasium
 import numpy as np
 import torch
-from stable_baselines3 import DQN, PPO, SAC
+from stable_baselines3 import DQN
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Logger
@@ -49,30 +41,23 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecEnvWrapper
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvObs, VecEnvStepReturn
 
-from .ledger import DEFAULT_HOOKS, Learner, RunLedger, TrainingHooks, TrainingState, format_duration, restored_state
-from .params import MAX_COUNT, ParamError, Params, TaskParams, param
-from .results import EpisodeRecord, RunDirectory, RunFileError, aggregate
-from .task import Episode, TaskSpec, episode_duration
-from .vector import EnvWorkers, as_env_actions, make_env_workers, worker_seeds
+from ...params import ParamError, Params, TaskParams
+from ...runs.ledger import (
+    DEFAULT_HOOKS,
+    Learner,
+    RunLedger,
+    TrainingHooks,
+    TrainingState,
+    format_duration,
+    restored_state,
+)
+from ...runs.results import EpisodeRecord, RunDirectory, RunFileError, aggregate
+from ...task import Episode, TaskSpec, episode_duration
+from ..registry import AgentSpec
+from .params import DqnParams, NetworkParams
 
-if TYPE_CHECKING:
-    from .agents import AgentSpec
-    from .evaluation import TrainedRun
-
-CHECKPOINT_FORMAT = "robot_rl.deep_checkpoint/1"
+CHECKPOINT_FORMAT = "robot_rl.deep_checkpoint/1"  # a format name written in agent.json: kept as it was
 PARTIAL_MODEL = "model.partial.zip"  # model.zip being written
-
-
-def _available_memory() -> int | None:
-    """MemAvailable of /proc/meminfo in bytes (None where there is none)."""
-    try:
-        with open("/proc/meminfo", encoding="ascii") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return None
 
 
 def _sha256(path: Path) -> str:
@@ -83,141 +68,13 @@ def _sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
-def _one_line_reason(error: BaseException) -> str:
+def one_line_reason(error: BaseException) -> str:
     """An error of zipfile, torch or SB3 in one short line; torch's advice to load with weights_only=False (which
     would run whatever the file holds) is left out."""
     text = " ".join(str(error).split())
     if "weights_only" in text:
         return "it holds more than torch tensors (refused: loading it could run code)"
     return f"{type(error).__name__}: {text[:200]}{'...' if len(text) > 200 else ''}"
-
-
-@dataclass(frozen=True, kw_only=True)
-class NetworkParams(Params):
-    hidden_layers: int = param(low=1, high=8, doc="hidden layers of the MLP")
-    hidden_units: int = param(low=1, high=4096, doc="units per hidden layer")
-    learning_rate: float = param(low=0.0, low_open=True, high=1.0, doc="Adam's step size")
-    reward_scale: float = param(low=0.0, low_open=True, high=1e6, default=1.0,
-                                doc="the agent learns from the task's rewards times this (the run's files keep "
-                                    "the task's)")
-
-    def algorithm(self) -> Callable[..., BaseAlgorithm]:
-        """The SB3 algorithm these params are for (DQN, PPO and SAC take gamma, BaseAlgorithm does not)."""
-        raise NotImplementedError
-
-    def algorithm_kwargs(self) -> dict[str, Any]:
-        """The algorithm's keyword arguments from these params (the network's are policy_kwargs')."""
-        values = self.to_mapping()
-        for key in ("hidden_layers", "hidden_units", "reward_scale"):
-            del values[key]
-        return values
-
-    def check_action_space(self, space: gymnasium.spaces.Space[Any], source: str) -> None:
-        """ParamError in one line when the algorithm cannot act in `space`."""
-
-    def policy_kwargs(self, network: list[int]) -> dict[str, Any]:
-        """SB3's policy_kwargs for hidden layers of these sizes."""
-        raise NotImplementedError
-
-    def buffer_bytes(self, observation_size: int, n_envs: int) -> int:
-        """The bytes the algorithm's buffer of transitions takes."""
-        raise NotImplementedError
-
-    def check_memory(self, observation_size: int, n_envs: int) -> None:
-        """ValueError in one line when the buffer would not fit the memory available (SB3 would allocate it and
-        die with a MemoryError, or the kernel would end the process)."""
-        needed, available = self.buffer_bytes(observation_size, n_envs), _available_memory()
-        if available is not None and needed > available:
-            raise ValueError(f"the agent's buffer needs {needed / 2**30:.3g} GiB, more than the "
-                             f"{available / 2**30:.3g} GiB of memory available: lower buffer_size (DQN, SAC) or "
-                             f"n_steps (PPO) in the agent_config")
-
-
-@dataclass(frozen=True, kw_only=True)
-class DqnParams(NetworkParams):
-    """Stable-Baselines3 DQN's arguments (gamma is the task's); see robot_rl/config/dqn.yaml."""
-
-    buffer_size: int = param(low=1, high=MAX_COUNT, doc="replay buffer capacity (transitions)")
-    learning_starts: int = param(low=0, high=MAX_COUNT, doc="transitions collected before the first gradient step")
-    batch_size: int = param(low=1, high=MAX_COUNT, doc="transitions per gradient step")
-    train_freq: int = param(low=1, high=MAX_COUNT, doc="env steps (per env) between two trainings")
-    gradient_steps: int = param(low=1, high=MAX_COUNT, doc="gradient steps per training")
-    target_update_interval: int = param(low=1, high=MAX_COUNT, doc="env steps between two target network updates")
-    exploration_fraction: float = param(low=0.0, high=1.0, doc="share of the step budget over which epsilon falls")
-    exploration_initial_eps: float = param(low=0.0, high=1.0, doc="epsilon at the start")
-    exploration_final_eps: float = param(low=0.0, high=1.0, doc="epsilon at the end of the fall")
-
-    def algorithm(self) -> Callable[..., BaseAlgorithm]:
-        return DQN
-
-    def check_action_space(self, space: gymnasium.spaces.Space[Any], source: str) -> None:
-        if not isinstance(space, gymnasium.spaces.Discrete):
-            raise ParamError(f"{source}: DQN needs Discrete actions, the task has {space} (try agent:=sac or ppo)")
-
-    def buffer_bytes(self, observation_size: int, n_envs: int) -> int:
-        """SB3's replay buffer: per transition an observation, the next one (float32), action, reward, done, timeout."""
-        return self.buffer_size * (2 * 4 * observation_size + 8 + 4 + 4 + 4)
-
-    def policy_kwargs(self, network: list[int]) -> dict[str, Any]:
-        return {"net_arch": network}
-
-
-@dataclass(frozen=True, kw_only=True)
-class PpoParams(NetworkParams):
-    """Stable-Baselines3 PPO's arguments (gamma is the task's); see robot_rl/config/ppo.yaml."""
-
-    n_steps: int = param(low=1, high=MAX_COUNT, doc="env steps per env between two updates")
-    batch_size: int = param(low=1, high=MAX_COUNT, doc="minibatch size")
-    n_epochs: int = param(low=1, high=MAX_COUNT, doc="passes over each rollout")
-    gae_lambda: float = param(low=0.0, high=1.0, doc="GAE lambda")
-    clip_range: float = param(low=0.0, low_open=True, doc="PPO's clip range")
-    ent_coef: float = param(low=0.0, doc="entropy bonus weight")
-
-    def algorithm(self) -> Callable[..., BaseAlgorithm]:
-        return PPO
-
-    def buffer_bytes(self, observation_size: int, n_envs: int) -> int:
-        """SB3's rollout buffer (float32): per env step an observation, action, reward, return, advantage, value..."""
-        return self.n_steps * n_envs * 4 * (observation_size + 7)
-
-    def policy_kwargs(self, network: list[int]) -> dict[str, Any]:
-        return {"net_arch": {"pi": network, "vf": network}}
-
-
-@dataclass(frozen=True, kw_only=True)
-class SacParams(NetworkParams):
-    """Stable-Baselines3 SAC's arguments (gamma is the task's); see robot_rl/config/sac.yaml."""
-
-    buffer_size: int = param(low=1, high=MAX_COUNT, doc="replay buffer capacity (transitions)")
-    learning_starts: int = param(low=0, high=MAX_COUNT, doc="transitions collected before the first gradient step")
-    batch_size: int = param(low=1, high=MAX_COUNT, doc="transitions per gradient step")
-    tau: float = param(low=0.0, low_open=True, high=1.0, doc="soft update coefficient of the target networks")
-    train_freq: int = param(low=1, high=MAX_COUNT, doc="env steps (per env) between two trainings")
-    gradient_steps: int = param(low=1, high=MAX_COUNT, doc="gradient steps per training")
-    ent_coef: float = param(low=0.0, low_open=True, doc="entropy coefficient (its start value if learned)")
-    learn_ent_coef: bool = param(doc="learn the entropy coefficient towards a target entropy (SB3's 'auto')")
-
-    def algorithm(self) -> Callable[..., BaseAlgorithm]:
-        return SAC
-
-    def algorithm_kwargs(self) -> dict[str, Any]:
-        values = super().algorithm_kwargs()
-        learn = values.pop("learn_ent_coef")
-        values["ent_coef"] = f"auto_{values['ent_coef']}" if learn else values["ent_coef"]
-        return values
-
-    def check_action_space(self, space: gymnasium.spaces.Space[Any], source: str) -> None:
-        if not isinstance(space, gymnasium.spaces.Box):
-            raise ParamError(f"{source}: SAC needs Box (continuous) actions, the task has {space} "
-                             f"(try agent:=dqn or ppo, or a task with continuous actions)")
-
-    def buffer_bytes(self, observation_size: int, n_envs: int) -> int:
-        """SB3's replay buffer: per transition an observation, the next one, an action of at most 8 floats
-        (float32), reward, done, timeout."""
-        return self.buffer_size * (2 * 4 * observation_size + 4 * 8 + 4 + 4 + 4)
-
-    def policy_kwargs(self, network: list[int]) -> dict[str, Any]:
-        return {"net_arch": network}
 
 
 def build_model(agent_params: NetworkParams, env: VecEnv | gymnasium.Env[Any, Any], gamma: float,
@@ -245,83 +102,6 @@ class EpisodeSchedule:
         if self.fraction <= 0.0 or self.progress >= self.fraction:
             return self.final
         return self.initial + (self.final - self.initial) * self.progress / self.fraction
-
-
-class RobotVecEnv(VecEnv):
-    """A Stable-Baselines3 VecEnv over EnvWorkers (see the module docstring)."""
-
-    def __init__(self, workers: EnvWorkers):
-        self.workers = workers
-        super().__init__(workers.n, workers.observation_space, workers.action_space)
-
-    def seed(self, seed: int | None = None) -> Sequence[int | None]:
-        self._seeds = list(worker_seeds(seed, self.num_envs))
-        return self._seeds
-
-    def reset(self) -> np.ndarray:
-        replies = self.workers.request_all("reset", [(s, o or None) for s, o in zip(self._seeds, self._options)])
-        self.reset_infos = [info for _, info in replies]
-        self._reset_seeds()
-        self._reset_options()
-        return np.stack([observation for observation, _ in replies])
-
-    def step_async(self, actions: np.ndarray) -> None:
-        for i, action in enumerate(as_env_actions(actions, self.action_space, self.num_envs)):
-            self.workers.send(i, "step", action)
-
-    def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
-        replies = self.workers.receive_all(what="answer a step")
-        observations, rewards, dones, infos = [], [], [], []
-        for i, (observation, reward, terminated, truncated, info, final) in enumerate(replies):
-            if final is not None:  # the worker has reset: `info` is the reset's, `final` the episode's last
-                self.reset_infos[i] = info
-                info = {**final[1], "terminal_observation": final[0]}
-            info["TimeLimit.truncated"] = truncated and not terminated
-            observations.append(observation)
-            rewards.append(reward)
-            dones.append(terminated or truncated)
-            infos.append(info)
-        return (np.stack(observations), np.array(rewards, dtype=np.float32), np.array(dones, dtype=np.bool_),
-                infos)
-
-    def close(self) -> None:
-        self.workers.close()
-
-    def _indices(self, indices: Any) -> list[int]:
-        if indices is None:
-            return list(range(self.num_envs))
-        return [indices] if isinstance(indices, int) else list(indices)
-
-    def get_attr(self, attr_name: str, indices: Any = None) -> list[Any]:
-        targets = self._indices(indices)
-        for i in targets:
-            self.workers.send(i, "get_attr", attr_name)
-        return [self.workers.receive(i, what=f"answer get_attr {attr_name!r}") for i in targets]
-
-    def set_attr(self, attr_name: str, value: Any, indices: Any = None) -> None:
-        targets = self._indices(indices)
-        for i in targets:
-            self.workers.send(i, "call", ("__setattr__", (attr_name, value), {}))
-        for i in targets:
-            self.workers.receive(i, what=f"answer set_attr {attr_name!r}")
-
-    def env_method(self, method_name: str, *method_args: Any, indices: Any = None, **method_kwargs: Any) -> list[Any]:
-        targets = self._indices(indices)
-        for i in targets:
-            self.workers.send(i, "call", (method_name, method_args, method_kwargs))
-        return [self.workers.receive(i, what=f"answer {method_name}()") for i in targets]
-
-    def env_is_wrapped(self, wrapper_class: type[gymnasium.Wrapper[Any, Any, Any, Any]],
-                       indices: Any = None) -> list[bool]:
-        """Only gymnasium's TimeLimit wraps a worker's env (and SB3 never asks about it)."""
-        return [wrapper_class is gymnasium.wrappers.TimeLimit for _ in self._indices(indices)]
-
-
-def make_vec_env(task: TaskSpec[Any], n: int, backend: str, seed: int, params: TaskParams,
-                 ros_timeout: float = 10.0, cluster: str | None = None) -> RobotVecEnv:
-    """N envs of `task` in worker processes (or Ray actors on `cluster`), as an SB3 VecEnv."""
-    return RobotVecEnv(make_env_workers(task, n, cluster, backend=backend, seed=seed, params=params,
-                                        ros_timeout=ros_timeout))
 
 
 class ScaledRewards(VecEnvWrapper):
@@ -449,7 +229,7 @@ class DeepTrainer(Learner):
             self.model.set_parameters(str(model_zip), exact_match=True, device="cpu")
         except Exception as error:  # noqa: BLE001 (zipfile, torch and SB3 each raise their own)
             raise RunFileError(f"{model_zip}: not weights of this run's {self.agent.name} model: "
-                               f"{_one_line_reason(error)}") from None
+                               f"{one_line_reason(error)}") from None
 
     def save_checkpoint(self) -> None:
         """model.partial.zip (SB3's format), agent.json (ours, with that file's sha256), then model.partial.zip
@@ -524,41 +304,8 @@ class DeepTrainer(Learner):
         return ledger.close(done, self.stopped)
 
 
-class DeepPolicy:
-    """A trained run's deterministic policy: observation -> action."""
-
-    def __init__(self, model: BaseAlgorithm):
-        self.model = model
-
-    def __call__(self, observation: np.ndarray) -> int | np.ndarray:
-        action, _ = self.model.predict(observation, deterministic=True)
-        return as_env_actions(action, self.model.action_space, 1)[0]
-
-
 def make_trainer(agent: AgentSpec, env: VecEnv | gymnasium.Env[Any, Any], task: TaskSpec[Any], params: TaskParams,
                  run: RunDirectory, hooks: TrainingHooks, resume: bool, agent_params: Params | None,
                  max_steps: int | None, agent_config: Path | None) -> DeepTrainer:
     assert isinstance(agent_params, NetworkParams)
     return DeepTrainer(env, task, params, agent, agent_params, run, hooks, resume, max_steps, agent_config)
-
-
-def greedy_policy(run: TrainedRun, checkpoint: dict[str, Any]) -> Callable[[gymnasium.Env[Any, Any], int], DeepPolicy]:
-    """The greedy policy of a deep run: the model rebuilt from agent.json's params, its weights from model.zip."""
-    try:
-        if checkpoint.get("format") != CHECKPOINT_FORMAT:
-            raise ValueError(f"format {checkpoint.get('format')!r}")
-        agent_params = run.agent.load_params_from(checkpoint["agent_params"], str(run.path))
-    except (KeyError, TypeError, ValueError, ParamError) as error:
-        raise ValueError(f"{run.path}: not a deep agent's checkpoint ({error})") from None
-    assert isinstance(agent_params, NetworkParams)
-
-    def policy(env: gymnasium.Env[Any, Any], _seed: int) -> DeepPolicy:
-        torch.set_num_threads(1)
-        model = build_model(agent_params, DummyVecEnv([lambda: env]), run.params.gamma, run.params.seed)
-        model_zip = run.path.with_name("model.zip")
-        try:
-            model.set_parameters(str(model_zip), exact_match=True, device="cpu")
-        except Exception as error:  # noqa: BLE001 (zipfile, torch and SB3 each raise their own)
-            raise RunFileError(f"{model_zip}: not weights of this run's model: {_one_line_reason(error)}") from None
-        return DeepPolicy(model)
-    return policy

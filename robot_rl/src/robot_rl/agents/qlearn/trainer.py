@@ -8,29 +8,23 @@ RunLedger's. A checkpoint (qtable.json: Q-table, epsilon, RNG, counters; JSON, a
 resume: episodes logged after it are dropped and re-run, never repeated. When an episode cannot
 finish (Ctrl-C, the sim gone), the Q-learner goes back to where that episode started before the
 ledger saves the run: nothing completed is lost, and resuming repeats exactly what the uninterrupted
-run would have done. `make_trainer` and `greedy_policy` are the agent registry's entry points
-(robot_rl.agents); with N envs the trainer is robot_rl.vector_training's.
+run would have done. With N envs the trainer is robot_rl.agents.qlearn.vector_trainer's, whose `make_trainer`
+and robot_rl.agents.qlearn.policy's `greedy_policy` are the agent registry's entry points.
 """
 from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Sequence
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from collections.abc import Sequence
+from typing import Any
 
 import gymnasium
-import numpy as np
 
-from .ledger import DEFAULT_HOOKS, Learner, RunLedger, TrainingHooks, TrainingState, restored_state
-from .params import Params, TaskParams
+from ...params import TaskParams
+from ...runs.ledger import DEFAULT_HOOKS, Learner, RunLedger, TrainingHooks, TrainingState, restored_state
+from ...runs.results import EpisodeRecord, RunDirectory
+from ...task import Episode, TaskSpec, episode_duration
 from .qlearn import QLearn
-from .results import EpisodeRecord, RunDirectory
-from .task import Episode, TaskSpec, episode_duration
-
-if TYPE_CHECKING:
-    from .agents import AgentSpec
-    from .evaluation import TrainedRun
 
 CHECKPOINT_FORMAT = "robot_rl.training_checkpoint/2"
 
@@ -150,33 +144,3 @@ class QLearningTrainer(Learner):
             ledger.episode_done(episode, highest, self.qlearn.epsilon)
             ledger.log_progress_if_due()
         return ledger.close(done=state.episode >= params.nepisodes)
-
-
-def make_trainer(agent: AgentSpec, env: gymnasium.Env[Any, Any], task: TaskSpec[Any], params: TaskParams,
-                 run: RunDirectory, hooks: TrainingHooks, resume: bool, agent_params: Params | None,
-                 max_steps: int | None, agent_config: Path | None) -> QLearningTrainer:
-    """The tabular trainer of `env`: one env, or robot_rl.vector's N (VectorQLearningTrainer); its params are the
-    task's (no agent_params, agent_config), its budget nepisodes (no max_steps)."""
-    if isinstance(env, gymnasium.vector.VectorEnv):
-        from .vector_training import VectorQLearningTrainer
-        return VectorQLearningTrainer(env, task, params, run, hooks, resume)
-    return QLearningTrainer(env, task, params, run, hooks, resume)
-
-
-def greedy_policy(run: TrainedRun, checkpoint: dict[str, Any]) -> Callable[[gymnasium.Env[Any, Any], int],
-                                                                           Callable[[np.ndarray], int]]:
-    """The Q-table's greedy policy (ties broken by an RNG seeded with the seed given), checked against
-    the state key the run's params make."""
-    try:
-        qlearn, saved_key = QLearn.from_dict(checkpoint["qlearn"]), checkpoint["state_key"]
-    except (KeyError, TypeError) as error:
-        raise ValueError(f"{run.path}: not a training checkpoint (missing {error})") from None
-    state_key = run.task.state_key(run.params)
-    if state_key.to_dict() != saved_key:
-        raise ValueError(f"{run.path}: the Q-table was trained with another state key than this code makes from "
-                         f"{run.params_file}")
-
-    def policy(_env: gymnasium.Env[Any, Any], seed: int) -> Callable[[np.ndarray], int]:
-        qlearn.rng.seed(seed)
-        return lambda observation: qlearn.greedy_action(state_key.key(observation))
-    return policy

@@ -17,8 +17,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from ..task import Episode, MetricValue, TaskSpec
 from .results import EpisodeRecord, RunDirectory, aggregate
-from .task import Episode, MetricValue, TaskSpec
 
 PROGRESS_WINDOW = 50   # episodes the progress line's headline metric is averaged over
 SUMMARY_WINDOW = 100   # episodes summary.json's metrics are averaged over

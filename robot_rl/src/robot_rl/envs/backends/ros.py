@@ -1,200 +1,55 @@
-"""How a task env reaches its robot: over ROS (the product) or in-process (the speed reference).
+"""The ROS backends: lockstep over a running sim node's services (RosBackend), or stepped as the tutorials
+step Gazebo (GazeboStyleBackend), and how a process becomes a ROS node.
 
-Both backends expose the same three calls, each returning the same `Readings`:
-`reset(restart_time)`, `set_command(controller, value)` + `step(physics_steps)`; and the same
-`render(width, height)`, an RGB frame from the sim's camera that follows the robot, and `place(base,
-joints)`, which puts the robot in a start pose after a reset (Gazebo's set_model_configuration and
-set_model_state). The ROS backend
-is lockstep: one call of the sim's ~step_packed service carries the commands, advances the paused sim
-exactly N physics steps and answers with every sensor's values at the new time (packed as numbers and
-names; the sim also publishes them on the sensors' topics for any subscriber).
-The direct backend makes the same calls on an in-process World and reads every sensor once per
-call, as the sim node publishes them once, so the same seed and actions give the same readings.
+The ROS backend is lockstep: one call of the sim's ~step_packed service carries the commands, advances
+the paused sim exactly N physics steps and answers with every sensor's values at the new time (packed
+as numbers and names; the sim also publishes them on the sensors' topics for any subscriber).
 GazeboStyleBackend steps as the tutorials step Gazebo (unpause, publish, wait on /clock, pause, read
-the latest messages), for comparison in ./ws bench.
-Every backend refuses readings that are not finite numbers (a state that blew up, whatever the path):
-the call raises, naming the first such reading, instead of handing NaN to the task.
+the latest messages), for comparison in ./ws bench. Only robot_rl.envs.backends.factory reaches this
+module (by name), so that what runs without ROS never imports rospy.
 """
 from __future__ import annotations
 
-import abc
-import dataclasses
 import math
+import threading
 from collections.abc import Mapping
-from dataclasses import dataclass
-from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import rosgraph
+import rospy
 import yaml
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
 
-from pybullet_sim.config import RobotConfig, parse_robot_config
-from pybullet_sim.readings import ContactReading, FrameState, ImuReading, JointStateReading, OdometryReading
-from pybullet_sim.sensors import pack_readings, unpack_readings
+from gazebo_msgs.msg import ModelState
+from gazebo_msgs.srv import GetPhysicsProperties, SetModelConfiguration, SetModelState
+from pybullet_sim.config import parse_robot_config
+from pybullet_sim.names import PHYSICS_SERVICE
+from pybullet_sim.readings import FrameState
+from pybullet_sim.ros import messages
+from pybullet_sim.ros.client import (
+    CommandPublisher,
+    SensorSubscriber,
+    SimConnection,
+    SimConnectionError,
+)
+from pybullet_sim.ros.messages import SENSOR_MESSAGES
+from pybullet_sim.sensors import unpack_readings
 from pybullet_sim.urdf import parse_urdf_joints
 
+from .base import Backend, Readings, non_finite_problem
+
 if TYPE_CHECKING:
-    from .task import RobotSpec
+    from ...task import RobotSpec
 
 SIM_NODE = "/pybullet_sim"  # the sim node's name in every launch file: its private params describe the robot
 STAMP_TOLERANCE_S = 1e-6  # a lockstep answer's stamp vs the one expected (the sim counts time in whole ns)
-SensorReading = OdometryReading | ImuReading | ContactReading
-R = TypeVar("R", OdometryReading, ImuReading, ContactReading)
-
-
-@dataclass(frozen=True)
-class Readings:
-    """One snapshot of every sensor of the robot, all stamped at the same sim time."""
-
-    joints: JointStateReading
-    sensors: Mapping[str, SensorReading]  # sensor name (as in config/<robot>_sim.yaml) -> reading
-
-    @property
-    def stamp(self) -> float:
-        return self.joints.stamp
-
-    def odometry(self, name: str) -> OdometryReading:
-        return self._sensor(name, OdometryReading)
-
-    def imu(self, name: str) -> ImuReading:
-        return self._sensor(name, ImuReading)
-
-    def contact(self, name: str) -> ContactReading:
-        return self._sensor(name, ContactReading)
-
-    def _sensor(self, name: str, kind: type[R]) -> R:
-        reading = self.sensors.get(name)
-        if not isinstance(reading, kind):
-            raise KeyError(f"the robot has no {kind.__name__[:-len('Reading')].lower()} sensor {name!r} "
-                           f"(its sensors: {', '.join(sorted(self.sensors)) or 'none'})")
-        return reading
-
-
-class SimStateError(RuntimeError):
-    """The sim's readings are not finite numbers: its state blew up. The message names the reading."""
-
-
-def _first_non_finite(value: Any, where: str) -> str:
-    """The name of the first number in `value` (a reading, or a tuple or dataclass in one) that is not finite, or ""."""
-    if isinstance(value, float):
-        return "" if math.isfinite(value) else f"{where} = {value!r}"
-    if isinstance(value, tuple):
-        return next((found for i, item in enumerate(value) if (found := _first_non_finite(item, f"{where}[{i}]"))), "")
-    if dataclasses.is_dataclass(value):
-        return next((found for f in dataclasses.fields(value)
-                     if (found := _first_non_finite(getattr(value, f.name), f"{where}.{f.name}"))), "")
-    return ""
-
-
-def non_finite_problem(readings: Readings) -> str:
-    """Why `readings` cannot go to a task ("" if every number in them is finite): the first reading that is NaN or
-    infinite, and what to check."""
-    found = _first_non_finite(readings.joints, "joint_states") or next(
-        (found for name, reading in readings.sensors.items() if (found := _first_non_finite(reading, name))), "")
-    if not found:
-        return ""
-    return (f"the sim's state is no longer finite at sim time {readings.stamp:.6f} s: {found}; the physics blew up "
-            f"(check what else sets the robot's state or the physics through the sim's services), so the episode "
-            f"cannot go on: restart the sim")
-
-
-class Backend(abc.ABC):
-    """A robot and its sim, seen as readings and controller commands."""
-
-    config: RobotConfig
-    time_step: float
-
-    @abc.abstractmethod
-    def reset(self, restart_time: bool = False) -> Readings:
-        """Robot back to its spawn pose, controllers restarted (Gazebo's reset_world); with
-        restart_time also sim time and the sensor-noise generator (reset_simulation)."""
-
-    @abc.abstractmethod
-    def set_command(self, controller: str, value: float) -> None:
-        """Command a controller; it takes effect from the next step."""
-
-    @abc.abstractmethod
-    def step(self, physics_steps: int) -> Readings:
-        """Advance exactly `physics_steps` physics steps and return the readings at the new time."""
-
-    @abc.abstractmethod
-    def render(self, width: int, height: int) -> np.ndarray:
-        """An RGB image (height x width x 3, uint8) of the robot from the sim's camera that follows it."""
-
-    def place(self, base: FrameState, joints: Mapping[str, float]) -> None:
-        """Set the named joints' positions at rest (Gazebo's set_model_configuration), then the base frame's
-        pose and twist in the world frame (set_model_state); the readings change with the next step."""
-        raise NotImplementedError(f"{type(self).__name__} cannot place the robot")
-
-    def show(self) -> None:  # noqa: B027 (optional: over ROS the sim node's window or rviz shows the robot)
-        """Bring the human view of the robot up to date."""
-
-    def close(self) -> None:  # noqa: B027 (optional: a backend without resources keeps this)
-        """Release the backend's resources."""
-
-
-class DirectBackend(Backend):
-    """The robot in an in-process World: no ROS, same readings; `gui` opens PyBullet's window."""
-
-    def __init__(self, urdf_path: Path, sim_config_path: Path, time_step: float = 0.001, seed: int = 0,
-                 gui: bool = False):
-        from pybullet_sim.world import World  # PyBullet only where it is used
-        params = yaml.safe_load(Path(sim_config_path).read_text())
-        self.config = parse_robot_config(params, where=str(sim_config_path))
-        self._sensor_names = [s.name for s in self.config.sensors]
-        self.time_step = time_step
-        self.world = World(Path(urdf_path).read_text(), self.config, time_step=time_step, seed=seed, gui=gui,
-                           urdf_source=str(urdf_path))
-        self._read()  # the sim node publishes every sensor once at start: keep the noise streams aligned
-
-    def _read(self) -> Readings:
-        world = self.world
-        joints, sensors = world.read_joint_states(), [world.read_sensor(s) for s in self.config.sensors]
-        readings = Readings(joints, dict(zip(self._sensor_names, sensors)))
-        if not math.isfinite(sum(pack_readings(joints, sensors)[0])):  # the numbers the sim node would send
-            problem = non_finite_problem(readings)
-            if problem:
-                raise SimStateError(problem)
-        return readings
-
-    def reset(self, restart_time: bool = False) -> Readings:
-        if restart_time:
-            self.world.reset_simulation()
-        else:
-            self.world.reset_world()
-        return self._read()
-
-    def set_command(self, controller: str, value: float) -> None:
-        self.world.set_command(controller, value)
-
-    def place(self, base: FrameState, joints: Mapping[str, float]) -> None:
-        self.world.set_joint_positions(joints)
-        self.world.set_model_state(base)
-
-    def step(self, physics_steps: int) -> Readings:
-        if not self.world.replay_from_reset(physics_steps):
-            self.world.step(physics_steps)
-        return self._read()
-
-    def render(self, width: int, height: int) -> np.ndarray:
-        return self.world.render(width, height)
-
-    def show(self) -> None:
-        self.world.aim_gui_camera()
-
-    def close(self) -> None:
-        self.world.close()
 
 
 def init_ros_node(name: str) -> None:
     """Make this process an anonymous ROS node `name`, unless it already is one. Fails at once with a
     SimConnectionError when no master answers (rospy.init_node would retry forever)."""
-    import threading
-
-    import rosgraph
-    import rospy
-
-    from pybullet_sim.ros.client import SimConnectionError
     if rospy.core.is_initialized():
         return
     uri = rosgraph.get_master_uri()
@@ -223,10 +78,6 @@ class RosBackend(Backend):
 
     def __init__(self, robot: RobotSpec, timeout: float = 10.0, sim_node: str = SIM_NODE, hint: str | None = None):
         """`hint`: what to check when the sim does not answer (default: whether its launch file runs)."""
-        import rospy
-
-        from pybullet_sim.ros.client import SimConnection, SimConnectionError
-
         init_ros_node("robot_rl_env")
         hint = hint or f"is the sim node running? (e.g. {robot.sim_launch})"
         self.timeout = timeout
@@ -255,7 +106,6 @@ class RosBackend(Backend):
 
     def _readings(self, packed: Any) -> Readings:
         """Readings from a pybullet_sim/PackedReadings answer."""
-        from pybullet_sim.ros.client import SimConnectionError
         try:
             joints, sensors = unpack_readings(packed.values, packed.names, self._sensor_types)
         except ValueError as error:
@@ -278,7 +128,6 @@ class RosBackend(Backend):
 
     def _check_stamp(self, stamp: float, expected: float | None, what: str) -> None:
         """SimConnectionError if the sim's answer to `what` is not stamped `expected` (None: not known yet)."""
-        from pybullet_sim.ros.client import SimConnectionError
         previous, self._stamp = self._stamp, stamp
         if expected is None or abs(stamp - expected) <= STAMP_TOLERANCE_S:
             return
@@ -296,10 +145,6 @@ class RosBackend(Backend):
 
     def _current_time_step(self) -> float | None:
         """The sim's time step now (Gazebo's get_physics_properties), or None if it does not answer."""
-        import rospy
-
-        from gazebo_msgs.srv import GetPhysicsProperties
-        from pybullet_sim.names import PHYSICS_SERVICE
         proxy = rospy.ServiceProxy(PHYSICS_SERVICE, GetPhysicsProperties)
         try:
             return float(proxy().time_step)
@@ -326,12 +171,6 @@ class RosBackend(Backend):
         return self.sim.render(width, height)
 
     def place(self, base: FrameState, joints: Mapping[str, float]) -> None:
-        import rospy
-
-        from gazebo_msgs.msg import ModelState
-        from gazebo_msgs.srv import SetModelConfiguration, SetModelState
-        from pybullet_sim.ros import messages
-        from pybullet_sim.ros.client import SimConnectionError
         names = ("/gazebo/set_model_configuration", "/gazebo/set_model_state")
         if self._placing is None:
             for name in names:
@@ -372,16 +211,6 @@ class GazeboStyleBackend(RosBackend):
     comparing that step with the lockstep one (./ws bench); resets, render and close are RosBackend's."""
 
     def __init__(self, robot: RobotSpec, timeout: float = 10.0, sim_node: str = SIM_NODE):
-        import threading
-
-        import rospy
-        from rosgraph_msgs.msg import Clock
-        from sensor_msgs.msg import JointState
-
-        from pybullet_sim.ros import messages
-        from pybullet_sim.ros.client import CommandPublisher, SensorSubscriber
-        from pybullet_sim.ros.messages import SENSOR_MESSAGES
-
         super().__init__(robot, timeout, sim_node)
         config, hint = self.config, f"is the sim node running? (e.g. {robot.sim_launch})"
         self._publishers = {c.name: CommandPublisher(config.command_topic(c), hint) for c in config.controllers}
@@ -403,9 +232,6 @@ class GazeboStyleBackend(RosBackend):
             self._clock_changed.notify_all()
 
     def step(self, physics_steps: int) -> Readings:
-        import rospy
-
-        from pybullet_sim.ros.client import SimConnectionError
         with self._clock_changed:
             target = self._clock + rospy.Duration.from_sec(physics_steps * self.time_step)
         self.sim.unpause()
@@ -438,19 +264,12 @@ class GazeboStyleBackend(RosBackend):
         super().close()
 
 
-def make_backend(kind: Any, robot: RobotSpec, seed: int | None = None, timeout: float = 10.0,
-                 gui: bool = False) -> Backend:
-    """`kind` "ros" (a sim node must be running), "direct" (an in-process World of `robot` seeded with
-    `seed`; `gui` opens PyBullet's window), or a Backend, returned as it is."""
-    if isinstance(kind, Backend):
-        return kind
-    if kind == "ros":
-        backend = RosBackend(robot, timeout=timeout)
-        if gui and not backend.gui:
-            import rospy
-            rospy.logwarn("render_mode 'human' over ROS: the robot shows in the sim node's window (launch the sim with "
-                          "gui:=true) or in rviz (rviz:=true)")
-        return backend
-    if kind == "direct":
-        return DirectBackend(robot.urdf_path, robot.sim_config_path, seed=seed or 0, gui=gui)
-    raise ValueError(f"backend must be 'ros' or 'direct', got {kind!r}")
+def ros_backend(robot: RobotSpec, *, seed: int | None, timeout: float, gui: bool,
+                hint: str | None = None) -> RosBackend:
+    """The factory's "ros": the robot behind the running sim node (`seed` is the direct backend's; `hint`: what
+    to check when the sim does not answer)."""
+    backend = RosBackend(robot, timeout=timeout, hint=hint)
+    if gui and not backend.gui:
+        rospy.logwarn("render_mode 'human' over ROS: the robot shows in the sim node's window (launch the sim with "
+                      "gui:=true) or in rviz (rviz:=true)")
+    return backend

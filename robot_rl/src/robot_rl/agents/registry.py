@@ -17,20 +17,14 @@ import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import Any, Protocol
 
-import numpy as np
-
-from .params import ParamError, Params, TaskParams, load_yaml_file
-from .results import DEEP_CHECKPOINT, QTABLE_CHECKPOINT, RunDirectory
-from .task import TaskSpec, package_path
-
-if TYPE_CHECKING:
-    from .evaluation import TrainedRun
-    from .ledger import TrainingHooks
-
-Policy = Callable[[np.ndarray], Any]  # observation -> action (an int for Discrete, an array for Box)
-PolicyMaker = Callable[[Any, int], Policy]  # (the env the policy acts in, the seed of its tie breaks) -> policy
+from ..params import ParamError, Params, TaskParams, load_yaml_file
+from ..policies import PolicyMaker
+from ..runs.ledger import TrainingHooks
+from ..runs.loaded import LoadedRun
+from ..runs.results import DEEP_CHECKPOINT, QTABLE_CHECKPOINT, RunDirectory
+from ..task import TaskSpec, package_path
 
 
 class Trainer(Protocol):
@@ -38,7 +32,7 @@ class Trainer(Protocol):
 
     @property
     def state(self) -> Any:
-        """The run's counters (robot_rl.ledger.TrainingState)."""
+        """The run's counters (robot_rl.runs.ledger.TrainingState)."""
 
     def train(self) -> dict[str, Any]:
         """Train the remaining episodes; returns the summary written to summary.json."""
@@ -54,7 +48,7 @@ class AgentSpec:
     """One agent. The "module:attr" references are imported when used:
     `trainer` -> make_trainer(spec, env, task, params, run, hooks, resume, agent_params, max_steps, agent_config),
     `vector_env` -> a function (task, n, backend=, seed=, params=, ros_timeout=, cluster=) making N envs,
-    `policy` -> a function (TrainedRun, its checkpoint) -> PolicyMaker, `params` -> a Params type."""
+    `policy` -> a function (LoadedRun, its checkpoint) -> PolicyMaker, `params` -> a Params type."""
 
     name: str
     description: str                 # for the launch files' and the docs' lists of agents
@@ -113,25 +107,26 @@ class AgentSpec:
         make: Callable[..., Trainer] = _resolve(self.trainer)
         return make(self, env, task, params, run, hooks, resume, agent_params, max_steps, agent_config)
 
-    def greedy_policy(self, run: TrainedRun, checkpoint: dict[str, Any]) -> PolicyMaker:
+    def greedy_policy(self, run: LoadedRun, checkpoint: dict[str, Any]) -> PolicyMaker:
         """The trained run's greedy policy; ValueError if the checkpoint is not this agent's."""
-        load: Callable[[TrainedRun, dict[str, Any]], PolicyMaker] = _resolve(self.policy)
+        load: Callable[[LoadedRun, dict[str, Any]], PolicyMaker] = _resolve(self.policy)
         return load(run, checkpoint)
 
 
 AGENTS: dict[str, AgentSpec] = {spec.name: spec for spec in (
     AgentSpec("qlearn", "tabular Q-learning, the tutorials'", QTABLE_CHECKPOINT, "", needs_deep=False,
-              trainer="robot_rl.training:make_trainer", vector_env="robot_rl.vector:make_vector_env",
-              policy="robot_rl.training:greedy_policy"),
+              trainer="robot_rl.agents.qlearn.vector_trainer:make_trainer",
+              vector_env="robot_rl.workers.vector_env:make_vector_env",
+              policy="robot_rl.agents.qlearn.policy:greedy_policy"),
     AgentSpec("dqn", "Stable-Baselines3's DQN", DEEP_CHECKPOINT, "-dqn", needs_deep=True,
-              trainer="robot_rl.deep:make_trainer", vector_env="robot_rl.deep:make_vec_env",
-              policy="robot_rl.deep:greedy_policy", params="robot_rl.deep:DqnParams"),
+              trainer="robot_rl.agents.sb3.trainer:make_trainer", vector_env="robot_rl.agents.sb3.vec_env:make_vec_env",
+              policy="robot_rl.agents.sb3.policy:greedy_policy", params="robot_rl.agents.sb3.params:DqnParams"),
     AgentSpec("ppo", "Stable-Baselines3's PPO", DEEP_CHECKPOINT, "-ppo", needs_deep=True,
-              trainer="robot_rl.deep:make_trainer", vector_env="robot_rl.deep:make_vec_env",
-              policy="robot_rl.deep:greedy_policy", params="robot_rl.deep:PpoParams"),
+              trainer="robot_rl.agents.sb3.trainer:make_trainer", vector_env="robot_rl.agents.sb3.vec_env:make_vec_env",
+              policy="robot_rl.agents.sb3.policy:greedy_policy", params="robot_rl.agents.sb3.params:PpoParams"),
     AgentSpec("sac", "Stable-Baselines3's SAC, for continuous actions", DEEP_CHECKPOINT, "-sac", needs_deep=True,
-              trainer="robot_rl.deep:make_trainer", vector_env="robot_rl.deep:make_vec_env",
-              policy="robot_rl.deep:greedy_policy", params="robot_rl.deep:SacParams"),
+              trainer="robot_rl.agents.sb3.trainer:make_trainer", vector_env="robot_rl.agents.sb3.vec_env:make_vec_env",
+              policy="robot_rl.agents.sb3.policy:greedy_policy", params="robot_rl.agents.sb3.params:SacParams"),
 )}
 
 
@@ -162,6 +157,3 @@ def main(argv: Sequence[str]) -> int:
     print("usage: python -m robot_rl.agents needs-deep NAME", file=sys.stderr)
     return 2
 
-
-if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))

@@ -1,10 +1,10 @@
-"""Env workers as Ray actors: robot_rl.vector's EnvWorkers over a Ray cluster (cluster:=ray or an address).
+"""Env workers as Ray actors: robot_rl.workers.pipe's EnvWorkers over a Ray cluster (cluster:=ray or an address).
 
 `RayEnvWorkers` has EnvWorkers' interface (send, receive, receive_all, request_all, close, worker_info), so
 the tabular trainer from N envs, the gymnasium vector env and the SB3 VecEnv take it unchanged. Actor i is
 one env, as pipe worker i is: it makes its env with the same i-th seed (worker_seeds), over ROS on a private
-master and sim node (robot_rl.private_sim) on its own node's loopback, and answers the same commands with
-the same replies (robot_rl.vector.answer); the driver takes them in the same order, so a run repeats and
+master and sim node (robot_rl.workers.private_sim) on its own node's loopback, and answers the same commands with
+the same replies (robot_rl.workers.base.answer); the driver takes them in the same order, so a run repeats and
 equals the same run over pipe workers. The actors are spread over the cluster's nodes (Ray's SPREAD), one
 CPU each; each is a process of its own whose methods run on its main thread (a sync actor), which matters:
 its master and sim node get SIGTERM when that thread ends (PR_SET_PDEATHSIG). Unlike pipe workers, they run
@@ -24,7 +24,7 @@ ray.kill). A node that is lost takes its actors with it: each exits once it find
 master and sim node end by their death signal. Ray restarts a lost actor on a node with a free CPU (up to
 max_restarts times): its constructor makes a new env with the same seed, which is reset, and the reply owed
 becomes a WorkerRestarted with that reset's observation. The tabular trainer from N envs starts that env's
-episode under way anew (robot_rl.vector_training); the gymnasium and SB3 faces end with it as with any
+episode under way anew (robot_rl.agents.qlearn.vector_trainer); the gymnasium and SB3 faces end with it as with any
 WorkerError (resume:=true continues the run). With no restart left, or none placed within start_timeout, a
 lost actor is a WorkerError naming the env and its node.
 """
@@ -42,22 +42,23 @@ from typing import Any
 import ray
 from ray.exceptions import ActorUnavailableError, GetTimeoutError, RayActorError, RayTaskError
 
-from . import cluster as ray_cluster
-from .params import TaskParams
-from .task import TaskSpec
-from .vector import (
+from ..envs.backends.factory import over_ros
+from ..params import TaskParams
+from ..task import TaskSpec
+from .base import (
     CLOSE_TIMEOUT,
     REPLY_MARGIN,
     START_TIMEOUT,
-    EnvWorkers,
     WorkerError,
     WorkerRecipe,
     WorkerRestarted,
-    _worker_env,
     answer,
     check_workers,
+    worker_env,
     worker_seeds,
 )
+from .cluster import connect
+from .pipe import EnvWorkers
 
 RESTART_POLL = 0.5  # s between asks whether a lost actor is back
 
@@ -69,7 +70,7 @@ class EnvActor:
         signal.signal(signal.SIGCHLD, signal.SIG_DFL)  # stop_process waits for its children (Ray may ignore SIGCHLD)
         self.log_dir = Path(tempfile.mkdtemp(prefix=f"robot_rl-ray-worker{index}-"))
         self.index = index
-        self.env, self.sim = _worker_env(index, replace(recipe, log_dir=self.log_dir))
+        self.env, self.sim = worker_env(index, replace(recipe, log_dir=self.log_dir))
 
     def describe(self) -> tuple[Any, Any, dict[str, Any], dict[str, Any]]:
         """Its spaces, metadata and (as a pipe worker's) its pid, master URI and children, plus its node."""
@@ -102,7 +103,7 @@ RemoteEnvActor = ray.remote(EnvActor)  # sync, one call at a time (Ray's default
 
 class RayEnvWorkers(EnvWorkers):
     """N Ray actors, each with one env of `task` (see the module docstring); EnvWorkers' arguments, plus the
-    cluster ("ray" or an address: robot_rl.cluster.connect; ignored when this process is a driver already) and
+    cluster ("ray" or an address: robot_rl.workers.cluster.connect; ignored when this process is a driver already) and
     how many times Ray may restart a lost actor (max_restarts; 0: a lost actor is a WorkerError)."""
 
     def __init__(self, task: TaskSpec[Any], n: int, backend: str = "ros", seed: int | None = 0,
@@ -126,7 +127,7 @@ class RayEnvWorkers(EnvWorkers):
         self.worker_info: list[dict[str, Any]] = [{} for _ in range(n)]
         with self._starting(start_timeout):
             if not ray.is_initialized():
-                ray_cluster.connect(cluster)
+                connect(cluster)
                 self._connected = True
             for i in range(n):
                 recipe = WorkerRecipe(task, self.params, backend, self.seeds[i], ros_timeout, self.log_dir, False,
@@ -145,7 +146,7 @@ class RayEnvWorkers(EnvWorkers):
         info = self.worker_info[i]
         if not info:
             return "its node's Ray logs say more (./ws cluster status names the nodes)"
-        logs = "its master's and sim node's logs" if self.backend == "ros" else "its logs"
+        logs = "its master's and sim node's logs" if over_ros(self.backend) else "its logs"
         return f"{logs} are kept on node {info['node_ip']} in {info['log_dir']}"
 
     def send(self, i: int, command: str, data: Any = None) -> None:

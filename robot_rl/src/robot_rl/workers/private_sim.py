@@ -24,7 +24,7 @@ from typing import IO, Any
 
 import yaml
 
-from .task import RobotSpec
+from ..task import RobotSpec
 
 PR_SET_PDEATHSIG = 1
 STOP_TIMEOUT = 5.0  # s each process gets to end after SIGINT before SIGKILL

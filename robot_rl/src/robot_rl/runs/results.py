@@ -25,14 +25,14 @@ from typing import Any, TypeVar
 import numpy as np
 import yaml
 
-from robot_rl.atomic import StrPath, symlink_atomic, write_bytes_atomic, write_json_atomic, write_text_atomic
+from ..atomic import StrPath, symlink_atomic, write_bytes_atomic, write_json_atomic, write_text_atomic
+from .plots import learning_curve_png
 
 COLUMNS = ("episode", "steps", "return", "epsilon", "sim_time", "wall_time")
 LATEST = "latest"
 QTABLE_CHECKPOINT = "qtable.json"
 DEEP_CHECKPOINT = "agent.json"
 LOCK_FILE = ".lock"
-MOVING_AVERAGE = 50
 T = TypeVar("T")
 _held_locks: dict[Path, int] = {}  # run folder -> the descriptor whose flock this process holds for its life
 
@@ -78,14 +78,6 @@ def aggregate(values: Mapping[str, Sequence[float | bool]]) -> dict[str, float |
 def _check_name(what: str, name: str) -> None:
     if not name or name in (".", "..", LATEST) or "/" in name:
         raise ValueError(f"invalid {what} name {name!r}")
-
-
-def moving_average(values: Sequence[float], window: int = MOVING_AVERAGE) -> np.ndarray:
-    """Mean of each run of `window` values (fewer at the start: the mean of those so far)."""
-    sums = np.cumsum(np.asarray(values, dtype=float))
-    counts = np.minimum(np.arange(1, len(sums) + 1), window)
-    sums[window:] = sums[window:] - sums[:-window]
-    return sums / counts
 
 
 class RunDirectory:
@@ -293,36 +285,13 @@ class RunDirectory:
     def write_learning_curve(self, *metrics: str) -> None:
         """Plot return, the task's `metrics` (if given) and epsilon per episode, each with its moving
         average over MOVING_AVERAGE episodes, to learning_curve.png."""
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
         records = self.read_episodes()
         panels = [("return", [r.return_ for r in records])]
         for metric in metrics:
             panels.append((metric, [float(r.metrics.get(metric, np.nan)) for r in records]))
         panels.append(("epsilon", [r.epsilon for r in records]))
-        fig, axes = plt.subplots(len(panels), 1, figsize=(8, 2.2 + 2.0 * len(panels)), sharex=True)
-        try:
-            x = np.array([r.episode for r in records])
-            for ax, (label, values) in zip(axes, panels):
-                if records:
-                    ax.plot(x, values, ".", alpha=0.4, markersize=3, label=label)
-                    if label != "epsilon":
-                        ax.plot(x, moving_average(values), "-", label=f"moving average ({MOVING_AVERAGE})")
-                        ax.legend(loc="best", fontsize="small")
-                else:
-                    ax.text(0.5, 0.5, "no episodes yet", ha="center", va="center", transform=ax.transAxes)
-                ax.set_ylabel(label)
-                ax.grid(True, alpha=0.3)
-            axes[-1].set_xlabel("episode")
-            axes[0].set_title(f"{self.robot} / {self.name}")
-            fig.tight_layout()
-            buf = io.BytesIO()
-            fig.savefig(buf, format="png", dpi=100)
-        finally:
-            plt.close(fig)
-        write_bytes_atomic(self.learning_curve_png, buf.getvalue())
+        png = learning_curve_png([r.episode for r in records], panels, f"{self.robot} / {self.name}")
+        write_bytes_atomic(self.learning_curve_png, png)
 
     def write_summary(self, summary: dict[str, Any]) -> None:
         write_json_atomic(self.summary_json, summary)

@@ -1,12 +1,8 @@
-"""Many envs at once: one worker process per env, over ROS (each with a master and a sim of its own) or direct.
+"""Env workers as processes on this machine, one per env, each answering its parent over a pipe.
 
 `EnvWorkers` starts N worker processes (multiprocessing's "spawn": rospy's state must never cross a
-fork). Worker i makes the task's env with the i-th seed that numpy's SeedSequence derives from the one
-seed given, so a run repeats; over ROS it first starts a `PrivateSim` (rosmaster on a free loopback
-port + the robot's sim node, paused) and becomes a node on that master, so every worker sees the
-tutorials' global topic names; direct workers need no master. A worker resets its env the moment an
-episode ends (gymnasium's SAME_STEP autoreset: the step answers the first observation of the next
-episode, with the last one and the last info beside it).
+fork), over ROS (each with a master and a sim of its own) or direct; what worker i makes and answers is
+robot_rl.workers.base's.
 
 Every wait is bounded: a worker that does not start within `start_timeout`, or does not answer a
 step within `ros_timeout` plus a margin, ends the vector env with a WorkerError naming the worker and
@@ -21,8 +17,8 @@ Workers run in Linux's SCHED_BATCH class, and so does every process they start (
 parent wakes the workers one after another, and a normal worker woken on the parent's CPU preempts the
 parent before it has woken the next worker, which then starts late.
 
-Two faces: `RobotVectorEnv` is a gymnasium VectorEnv; `robot_rl.deep.RobotVecEnv` is a
-Stable-Baselines3 VecEnv over the same workers.
+Two faces over the same workers: `robot_rl.workers.vector_env.RobotVectorEnv` is a gymnasium VectorEnv,
+`robot_rl.agents.sb3.vec_env.RobotVecEnv` a Stable-Baselines3 VecEnv.
 """
 from __future__ import annotations
 
@@ -38,90 +34,26 @@ import time
 import traceback
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import gymnasium
-import numpy as np
-from gymnasium.vector import AutoresetMode, VectorEnv
-from gymnasium.vector.utils import batch_space
+from ..envs.backends.factory import over_ros
+from ..params import TaskParams
+from ..task import TaskSpec
+from .base import (
+    CLOSE_TIMEOUT,
+    REPLY_MARGIN,
+    START_TIMEOUT,
+    WorkerError,
+    WorkerRecipe,
+    answer,
+    check_workers,
+    worker_env,
+    worker_seeds,
+)
+from .private_sim import set_pdeathsig
 
-from .backends import RosBackend
-from .params import TaskParams
-from .private_sim import PrivateSim, set_pdeathsig
-from .task import TaskSpec, make_env
-
-START_TIMEOUT = 60.0   # s for a worker to start its master, its sim node and its env
-REPLY_MARGIN = 30.0    # s a worker may take beyond ros_timeout to answer (a reset with a long settle on a busy machine)
-CLOSE_TIMEOUT = 10.0   # s for a worker to close before SIGTERM, and again before SIGKILL
 PARENT_EXIT_WAIT = 2.0  # s a worker signalled to end waits for its parent's end of the pipe to close
-
-
-class WorkerError(RuntimeError):
-    """A worker failed, died or did not answer in time; the message names it and what to check, and
-    `log_dir` the temporary folder kept for it (None: the caller's folder)."""
-
-    def __init__(self, message: str, log_dir: Path | None = None):
-        super().__init__(message)
-        self.log_dir = log_dir
-
-    def discard_logs(self) -> None:
-        """Remove the temporary folder kept for the error (when it was a stop's, e.g. Ctrl-C, not a fault's)."""
-        if self.log_dir is not None:
-            shutil.rmtree(self.log_dir, ignore_errors=True)
-
-
-class WorkerRestarted(WorkerError):
-    """Worker `index` was lost and a new one took its place (a Ray actor restarted on another node): the reply
-    owed is lost, the new worker's env has been reset, and `observation`, `info` are that reset's."""
-
-    def __init__(self, message: str, index: int, observation: Any, info: dict[str, Any]):
-        super().__init__(message)
-        self.index, self.observation, self.info = index, observation, info
-
-
-def worker_seeds(seed: int | None, n: int) -> list[int]:
-    """N independent seeds in [0, 2**31) (ROS params are 32-bit ints) derived from one by numpy's
-    SeedSequence.spawn: the same seed gives the same N seeds; None draws fresh entropy."""
-    return [int(child.generate_state(1, dtype=np.uint32)[0] >> 1) for child in np.random.SeedSequence(seed).spawn(n)]
-
-
-@dataclass(frozen=True)
-class WorkerRecipe:
-    """What a worker needs to make its env (pickled to the spawned process)."""
-
-    task: TaskSpec[Any]
-    params: TaskParams
-    backend: str                  # "ros" or "direct"
-    seed: int
-    ros_timeout: float
-    log_dir: Path
-    own_log_dir: bool             # a temporary folder of the parent's, which nobody would remove if it died
-    max_episode_steps: int | None
-    env_kwargs: dict[str, Any]
-
-
-def _worker_env(index: int, recipe: WorkerRecipe) -> tuple[gymnasium.Env[Any, Any], PrivateSim | None]:
-    """The worker's env, over its own private sim when over ROS."""
-    if recipe.backend == "direct":
-        return make_env(recipe.task, params=recipe.params, backend="direct", seed=recipe.seed,
-                        max_episode_steps=recipe.max_episode_steps, **recipe.env_kwargs), None
-    sim = PrivateSim(recipe.task.robot, recipe.log_dir / f"worker{index}", seed=recipe.seed)
-    try:
-        os.environ.update(ROS_MASTER_URI=sim.uri, ROS_HOSTNAME="127.0.0.1", ROS_IP="127.0.0.1",
-                          ROS_LOG_DIR=str(sim.log_dir), ROS_HOME=str(sim.log_dir))
-        import rospy
-        rospy.init_node(f"robot_rl_worker{index}", disable_signals=True)  # the parent decides when a worker ends
-        backend = RosBackend(recipe.task.robot, timeout=recipe.ros_timeout,
-                             hint=f"the worker's sim node (pid {sim.processes[-1].pid}) is gone or frozen: its log "
-                                  f"is {sim.log_dir / 'sim_node.log'}")
-        env = make_env(recipe.task, params=recipe.params, backend=backend, ros_timeout=recipe.ros_timeout,
-                       max_episode_steps=recipe.max_episode_steps, **recipe.env_kwargs)
-    except BaseException:
-        sim.close()
-        raise
-    return env, sim
 
 
 def run_as_batch() -> None:
@@ -154,33 +86,6 @@ def _workers_born_ignoring_sigint() -> Iterator[None]:
         signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
 
 
-def answer(env: gymnasium.Env[Any, Any], command: str, data: Any) -> Any:
-    """A worker's reply to a command other than "close" (the same over a pipe and as a Ray actor)."""
-    if command == "step":
-        observation, reward, terminated, truncated, info = env.step(data)
-        final = None
-        if terminated or truncated:
-            final = (observation, info)
-            observation, info = env.reset()
-        return observation, float(reward), bool(terminated), bool(truncated), info, final
-    if command == "reset":
-        return env.reset(seed=data[0], options=data[1])
-    if command == "get_attr":
-        return getattr(env.unwrapped, data)
-    if command == "call":
-        name, args, kwargs = data
-        return getattr(env.unwrapped, name)(*args, **kwargs)
-    raise ValueError(f"unknown worker command {command!r}")
-
-
-def check_workers(n: Any, backend: str) -> None:
-    """ValueError unless `n` envs over `backend` can be made."""
-    if not (isinstance(n, int) and n >= 1):
-        raise ValueError(f"the number of envs must be a whole number >= 1, got {n!r}")
-    if backend not in ("ros", "direct"):
-        raise ValueError(f"backend must be 'ros' or 'direct', got {backend!r}")
-
-
 def _raise_system_exit(_signum: int, _frame: Any) -> None:
     raise SystemExit(1)
 
@@ -209,7 +114,7 @@ def _worker(index: int, recipe: WorkerRecipe, conn: multiprocessing.connection.C
     env, sim = None, None
     parent_gone, closing = False, False  # whether the pipe closed without a "close"; whether "close" came
     try:
-        env, sim = _worker_env(index, recipe)
+        env, sim = worker_env(index, recipe)
         info = {"pid": os.getpid(), "master_uri": sim.uri if sim else None,
                 "children": [p.pid for p in sim.processes] if sim else []}
         conn.send(("ok", (env.observation_space, env.action_space, env.metadata, info)))
@@ -312,7 +217,7 @@ class EnvWorkers:
         return WorkerError(message, self.log_dir if self._own_log_dir else None)
 
     def _what_to_check(self, i: int) -> str:
-        logs = "its traceback, master's and sim node's logs" if self.backend == "ros" else "its traceback"
+        logs = "its traceback, master's and sim node's logs" if over_ros(self.backend) else "its traceback"
         return f"{logs} (if any) are kept in {self.log_dir / f'worker{i}'}"
 
     def send(self, i: int, command: str, data: Any = None) -> None:
@@ -412,96 +317,3 @@ class EnvWorkers:
             self.close()
 
 
-def as_env_actions(actions: Any, space: gymnasium.spaces.Space[Any], n: int) -> list[Any]:
-    """`actions` (a batch, as an agent gives it) as `n` single actions in the form `space` holds: ints for
-    Discrete, float32 arrays of the space's shape for Box. ValueError if there are not `n` of them."""
-    values = np.asarray(actions)
-    if isinstance(space, gymnasium.spaces.Box):
-        shape = space.shape or ()
-        if values.size != n * int(np.prod(shape)):
-            raise ValueError(f"{values.size} action values for {n} envs of {space}: {actions!r}")
-        return [np.asarray(a, dtype=space.dtype) for a in values.reshape((n, *shape))]
-    if values.size != n:
-        raise ValueError(f"{values.size} actions for {n} envs: {actions!r}")
-    return [int(a) if isinstance(space, gymnasium.spaces.Discrete) and np.issubdtype(a.dtype, np.integer) else a
-            for a in values.reshape(n)]
-
-
-def checked_actions(actions: Any, space: gymnasium.spaces.Space[Any], n: int) -> list[Any]:
-    """One action per env, each checked against `space` before any is sent: a bad action is a ValueError
-    naming it and its env, and no worker steps (or fails on it)."""
-    checked = as_env_actions(actions, space, n)
-    for i, action in enumerate(checked):
-        if not space.contains(action):
-            raise ValueError(f"action {np.asarray(action).tolist()!r} of env {i} is not in {space}")
-    return checked
-
-
-class RobotVectorEnv(VectorEnv):
-    """A gymnasium VectorEnv over EnvWorkers (autoreset SAME_STEP: infos["final_obs"], infos["final_info"]).
-
-    reset(seed=int) resets worker i with the i-th seed SeedSequence(seed) derives (worker_seeds); a list
-    gives each worker its own seed."""
-
-    def __init__(self, workers: EnvWorkers):
-        self.workers = workers
-        self.num_envs = workers.n
-        self.single_observation_space = workers.observation_space
-        self.single_action_space = workers.action_space
-        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
-        self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self.metadata = {**workers.metadata, "autoreset_mode": AutoresetMode.SAME_STEP}
-        self.spec = None
-        self.render_mode = None
-        self._np_random = None
-        self._np_random_seed = None
-
-    def reset(self, *, seed: int | list[int | None] | None = None,
-              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
-        if seed is None:
-            seeds: list[int | None] = [None] * self.num_envs
-        elif isinstance(seed, int):
-            seeds = list(worker_seeds(seed, self.num_envs))
-        else:
-            seeds = list(seed)
-            if len(seeds) != self.num_envs:
-                raise ValueError(f"reset: {len(seeds)} seeds for {self.num_envs} envs")
-        replies = self.workers.request_all("reset", [(s, options) for s in seeds])
-        infos: dict[str, Any] = {}
-        for i, (_, info) in enumerate(replies):
-            infos = self._add_info(infos, info, i)
-        return np.stack([observation for observation, _ in replies]), infos
-
-    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
-        replies = self.workers.request_all("step", checked_actions(actions, self.single_action_space, self.num_envs))
-        infos: dict[str, Any] = {}
-        for i, (_, _, _, _, info, final) in enumerate(replies):
-            if final is not None:
-                infos = self._add_info(infos, {"final_obs": final[0], "final_info": final[1]}, i)
-            infos = self._add_info(infos, info, i)
-        observations = np.stack([reply[0] for reply in replies])
-        rewards = np.array([reply[1] for reply in replies], dtype=np.float64)
-        terminations = np.array([reply[2] for reply in replies], dtype=np.bool_)
-        truncations = np.array([reply[3] for reply in replies], dtype=np.bool_)
-        return observations, rewards, terminations, truncations, infos
-
-    def close_extras(self, **kwargs: Any) -> None:
-        self.workers.close()
-
-
-def make_env_workers(task: TaskSpec[Any], n: int, cluster: str | None = None, **kwargs: Any) -> EnvWorkers:
-    """N env workers: processes on this machine (cluster None or ""), or Ray actors on `cluster` ("ray": this
-    workspace's Ray node, or a cluster's address; robot_rl.ray_workers). The same seeds, order and replies."""
-    if not cluster:
-        return EnvWorkers(task, n, **kwargs)
-    from .cluster import prepare_driver
-    prepare_driver()  # before ray is imported
-    from .ray_workers import RayEnvWorkers
-    return RayEnvWorkers(task, n, cluster=cluster, **kwargs)
-
-
-def make_vector_env(task: TaskSpec[Any], n: int, backend: str = "ros", seed: int | None = 0,
-                    params: TaskParams | None = None, cluster: str | None = None, **kwargs: Any) -> RobotVectorEnv:
-    """N envs of `task` in worker processes (or Ray actors on `cluster`), as a gymnasium VectorEnv (see EnvWorkers
-    for the arguments)."""
-    return RobotVectorEnv(make_env_workers(task, n, cluster, backend=backend, seed=seed, params=params, **kwargs))

@@ -14,7 +14,7 @@ The reward is the sum of the task's named terms, and every term is in `info` as 
 (Gymnasium's hopper_v5 convention). Truncation is gymnasium's TimeLimit (registered with each task's
 max_episode_steps; `robot_rl.task.make_env` sets it to the params' nsteps), not the env's business.
 
-Rendering (gymnasium's conventions, so RecordVideo and robot_rl.video work on every task):
+Rendering (gymnasium's conventions, so RecordVideo and robot_rl.runs.video work on every task):
 render_mode "rgb_array" makes render() return the frame of the sim's camera that follows the robot
 (render_height x render_width x 3, uint8; over ROS from the sim node's ~render service, so the env
 needs no physics of its own); "human" opens PyBullet's window on the direct backend (the camera
@@ -37,9 +37,10 @@ from gymnasium import spaces
 
 from pybullet_sim.readings import FrameState
 
-from .backends import Backend, Readings, make_backend
-from .params import TaskParams
-from .task import TaskSpec
+from ..params import TaskParams
+from ..task import TaskSpec
+from .backends.base import Backend, Readings
+from .backends.factory import make_backend
 
 P = TypeVar("P", bound=TaskParams)
 MAX_PHYSICS_STEPS = 100_000  # pybullet_sim's Step.MAX_STEPS: the most one lockstep step may advance
