@@ -1,5 +1,6 @@
 """Every registered task, the same checks: registration, params, gymnasium's env checker, reward terms
 that sum to the reward, metrics and state key, on the direct backend (no ROS master)."""
+import dataclasses
 import json
 import warnings
 
@@ -10,7 +11,7 @@ from gymnasium.utils.env_checker import check_env
 
 import hopper_training
 import moving_cube_training
-from robot_rl import TASKS, Episode, find_task, make_env
+from robot_rl import TASKS, Episode, TrainingState, find_task, make_env, restored_state
 
 ALL_TASKS = [*moving_cube_training.TASKS, *hopper_training.TASKS]
 IDS = [task.env_id for task in ALL_TASKS]
@@ -34,6 +35,14 @@ def test_a_tasks_former_env_id_still_makes_its_env():
         assert env.unwrapped.task is hopper_training.HOP_IN_PLACE
     finally:
         env.close()
+    # a run made before the rename (its checkpoint names the former id) is still found and resumed
+    assert find_task(hopper_training.TASKS, "MonopedHopLevel-v0") is hopper_training.HOP_IN_PLACE
+    assert TASKS["MonopedHopLevel-v0"] is hopper_training.HOP_IN_PLACE
+    checkpoint = {"format": "f", "task": "MonopedHopLevel-v0", "episode": 0,
+                  "state": dataclasses.asdict(TrainingState())}
+    assert restored_state(checkpoint, "f", hopper_training.HOP_IN_PLACE).episode == 0
+    with pytest.raises(ValueError, match="of task 'MonopedHopLevel-v0'"):
+        restored_state(checkpoint, "f", hopper_training.RESIDUAL_IN_PLACE)
 
 
 @pytest.mark.parametrize("task", ALL_TASKS, ids=IDS)

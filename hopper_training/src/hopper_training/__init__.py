@@ -7,8 +7,6 @@ Importing this package registers them with gymnasium:
 """
 from typing import Any
 
-import gymnasium
-
 from robot_rl import TaskSpec, register_tasks
 
 from .envs.hop import HOP
@@ -18,8 +16,4 @@ from .envs.residual_in_place import RESIDUAL_IN_PLACE
 from .envs.stay_up import STAY_UP
 
 TASKS: list[TaskSpec[Any]] = [STAY_UP, HOP, HOP_IN_PLACE, RESIDUAL_IN_PLACE, RESIDUAL_FORWARD]
-ENV_ID_ALIASES = {"MonopedHopLevel-v0": HOP_IN_PLACE}  # former env ids that gymnasium.make still takes
 register_tasks(*TASKS)
-for alias, spec in ENV_ID_ALIASES.items():
-    if alias not in gymnasium.registry:
-        gymnasium.register(id=alias, entry_point=spec.entry_point, max_episode_steps=spec.max_episode_steps)

@@ -115,6 +115,12 @@ class TaskSpec(Generic[P]):
     headline_metric: str                        # the metric progress lines show
     eval_horizon_s: float                       # evaluate.py's default horizon, in sim seconds
     curve_metrics: tuple[str, ...] = ()         # metrics learning_curve.png plots below the headline one
+    former_env_ids: tuple[str, ...] = ()        # ids it had before a rename: registered too, found by find_task
+
+    @property
+    def env_ids(self) -> tuple[str, ...]:
+        """Its env id, then its former ones."""
+        return (self.env_id, *self.former_env_ids)
 
     @property
     def metric_names(self) -> tuple[str, ...]:
@@ -144,18 +150,19 @@ TASKS: dict[str, TaskSpec[Any]] = {}
 
 
 def register_tasks(*specs: TaskSpec[Any]) -> None:
-    """Register each spec's env with gymnasium (with its max_episode_steps) and in TASKS."""
+    """Register each spec's env, under its env id and its former ones, with gymnasium (with its max_episode_steps)
+    and in TASKS."""
     for spec in specs:
-        TASKS[spec.env_id] = spec
-        if spec.env_id not in gymnasium.registry:
-            gymnasium.register(id=spec.env_id, entry_point=spec.entry_point,
-                               max_episode_steps=spec.max_episode_steps)
+        for env_id in spec.env_ids:
+            TASKS[env_id] = spec
+            if env_id not in gymnasium.registry:
+                gymnasium.register(id=env_id, entry_point=spec.entry_point, max_episode_steps=spec.max_episode_steps)
 
 
 def find_task(tasks: list[TaskSpec[Any]], name: str) -> TaskSpec[Any]:
-    """The task called `name` (its name or env id) among `tasks`."""
+    """The task called `name` (its name, env id or a former env id) among `tasks`."""
     for spec in tasks:
-        if name in (spec.name, spec.env_id):
+        if name == spec.name or name in spec.env_ids:
             return spec
     known = ", ".join(spec.name for spec in tasks)
     raise ParamError(f"unknown task {name!r} (known: {known})")

@@ -145,7 +145,8 @@ HOP_IN_PLACE = TaskSpec(
     package="hopper_training", robot=MONOPED, params_type=HopInPlaceParams, params_namespace="/",
     state_key=hop_in_place_state_key, results_name="hop_in_place", reward_topic="/monoped/reward",
     episode_reward_topic="/monoped/episode_reward", publish_cumulated_reward=True, max_episode_steps=10000,
-    metrics=hop_cycle_metrics, headline_metric="time_upright_s", eval_horizon_s=10.0, curve_metrics=("hops", "drift"))
+    metrics=hop_cycle_metrics, headline_metric="time_upright_s", eval_horizon_s=10.0, curve_metrics=("hops", "drift"),
+    former_env_ids=("MonopedHopLevel-v0",))
 
 
 class MonopedHopInPlaceEnv(HopCycleEnv):

@@ -51,7 +51,7 @@ def restored_state(checkpoint: dict[str, Any], checkpoint_format: str, task: Tas
     """The counters of a checkpoint of `checkpoint_format` and `task` (ValueError/KeyError/TypeError if not)."""
     if checkpoint.get("format") != checkpoint_format:
         raise ValueError(f"format is {checkpoint.get('format')!r}, expected {checkpoint_format!r}")
-    if checkpoint["task"] != task.env_id:
+    if checkpoint["task"] not in task.env_ids:
         raise ValueError(f"it is of task {checkpoint['task']!r}, this run trains {task.env_id!r}")
     state = TrainingState.from_dict(checkpoint["state"])
     if checkpoint["episode"] != state.episode:
