@@ -31,9 +31,8 @@ from typing import Any
 from robot_rl.agents import DEFAULT_AGENT, AgentSpec, find_agent
 from robot_rl.params import MAX_COUNT, MAX_SEED, ParamError, Params, load_yaml_file, parse_scalar
 from robot_rl.task import TaskSpec, find_task
+from workspace_tools.robots import DEFAULT_ROBOT, ROBOTS
 
-ROBOTS = {"cube": "moving_cube_training", "hopper": "hopper_training"}  # as ./ws run names them
-DEFAULT_ROBOT = "cube"
 # The arguments that say how a sweep runs, not which trials it has: a resumed sweep may change them.
 RUN_OPTIONS = ("name", "resume", "cluster", "concurrent", "results_dir")
 OPTIONS = (*RUN_OPTIONS, "task", "agent", "seeds", "max_steps", "max_failures", "eval_episodes", "eval_seed")
@@ -200,7 +199,7 @@ def parse_sweep(argv: Sequence[str]) -> SweepSpec:
     robot = args.pop(0) if args and ":=" not in args[0] else DEFAULT_ROBOT
     if robot not in ROBOTS:
         raise SweepError(f"unknown robot {robot!r} (known: {', '.join(ROBOTS)})")
-    package = ROBOTS[robot]
+    package = ROBOTS[robot].package
     given: dict[str, str] = {}
     for arg in args:
         name, sep, value = arg.partition(":=")
