@@ -14,6 +14,8 @@ from robot_rl.params import ParamError, Params
 from robot_rl.results import DEEP_CHECKPOINT, QTABLE_CHECKPOINT
 from robot_rl.task import find_task
 
+pytestmark = pytest.mark.deep  # needs torch and Stable-Baselines3 (requirements-deep.txt)
+
 ROOT = Path(__file__).resolve().parents[2]
 LAUNCH_FILES = ["robot_rl/launch/train.launch", "moving_cube_training/launch/main.launch",
                 "hopper_training/launch/main.launch"]

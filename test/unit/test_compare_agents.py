@@ -8,6 +8,8 @@ from hopper_training.monoped_env import STAY_UP
 from moving_cube_training.one_disk_walk import ONE_DISK_WALK
 from robot_rl.params import ParamError
 
+pytestmark = pytest.mark.deep  # needs torch and Stable-Baselines3 (requirements-deep.txt)
+
 
 def test_the_task_is_the_robot_s_first_unless_named():
     assert compare_agents._task("cube", None) is ONE_DISK_WALK
