@@ -23,6 +23,8 @@ from workspace_tools.ray_cluster import LoopbackCluster, listening_sockets, proc
 
 from test_vector_ros import alive, short_params, wait_gone, write_config  # isort: skip  # this folder's
 
+pytestmark = pytest.mark.ray  # needs Ray (requirements-distributed.txt)
+
 
 RAY_WORKER_PORTS = range(10002, 20000)  # Ray's default --min/--max-worker-port: each Ray worker's own server
 TIMING_COLUMNS = {"wall_time"}  # episodes.csv's columns that differ between two equal runs

@@ -22,6 +22,7 @@ from PIL import Image
 
 from workspace_tools.paths import REPO
 from workspace_tools.processes import Processes
+from workspace_tools.robots import ROBOTS
 from workspace_tools.sweep_spec import parse_sweep
 
 README = REPO / "README.md"
@@ -30,9 +31,9 @@ IMAGES = REPO / "docs" / "images"
 README_MAX_LINES = 250
 WS_COMMANDS = {"run", "help", "python", "exec", "test", "lint", "bench", "rviz", "plot", "setup", "cluster", "sweep",
                "demo"}
-ROBOT_LAUNCH = {"cube": ("moving_cube_training", "main.launch"), "hopper": ("hopper_training", "main.launch")}
-SIM_LAUNCH = {"cube": ("pybullet_sim", "cube_sim.launch"), "hopper": ("pybullet_sim", "hopper_sim.launch")}
-REWARD_NAMESPACES = {"/moving_cube", "/monoped"}
+ROBOT_LAUNCH = {name: robot.training_launch for name, robot in ROBOTS.items()}
+SIM_LAUNCH = {name: robot.sim for name, robot in ROBOTS.items()}
+REWARD_NAMESPACES = {f"/{robot.namespace}" for robot in ROBOTS.values()}
 COMMAND_START = re.compile(r"(\./ws|\$WS/ws|roslaunch|rosrun|rostest|catkin_make|evaluate\.py) ")
 FENCE = re.compile(r"^ *```[a-z]*\n(.*?)^ *```", re.M | re.S)
 LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)\)")

@@ -4,12 +4,15 @@ residual task (task:=residual_forward), one hop a step."""
 import csv
 import json
 
+import pytest
 import yaml
 
 from hopper_training.envs.residual_forward import RESIDUAL_FORWARD
 from hopper_training.envs.stay_up import STAY_UP
 from robot_rl import find_agent
 from workspace_tools.processes import launch_args
+
+pytestmark = pytest.mark.deep  # needs torch and Stable-Baselines3 (requirements-deep.txt)
 
 TRAINING_TIMEOUT = 300.0  # wall s: a few episodes of at most 20 lockstep steps, plus roslaunch start-up and torch
 

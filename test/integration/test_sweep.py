@@ -20,6 +20,8 @@ from workspace_tools.paths import REPO
 from workspace_tools.processes import RosMaster, launch_args, wait_for
 from workspace_tools.ray_cluster import LoopbackCluster
 
+pytestmark = pytest.mark.ray  # needs Ray (requirements-distributed.txt)
+
 SWEEP_TIMEOUT = 600.0
 TRAINING_PROCESSES = ("roslaunch", "rosmaster", "sim_node", "start_training", "rosout")
 

@@ -22,6 +22,8 @@ from robot_rl import (
 )
 from robot_rl.agents.registry import main
 
+pytestmark = pytest.mark.deep  # needs torch and Stable-Baselines3 (requirements-deep.txt)
+
 ROOT = Path(__file__).resolve().parents[2]
 LAUNCH_FILES = ["robot_rl/launch/train.launch", "moving_cube_training/launch/main.launch",
                 "hopper_training/launch/main.launch"]

@@ -1,17 +1,11 @@
 """./ws bench's table (pure: a report as orchestrate() writes it, no processes): each ratio's lowest and
 highest repetition beside its median, and a note when the run's machine did not have two free cores."""
-import importlib.util
 import statistics
-import sys
-from pathlib import Path
 
 import pytest
 
-BENCH = Path(__file__).resolve().parents[2] / "workspace_tools/scripts/bench.py"
-_spec = importlib.util.spec_from_file_location("workspace_bench", BENCH)
-assert _spec is not None and _spec.loader is not None
-bench = sys.modules["workspace_bench"] = importlib.util.module_from_spec(_spec)  # its dataclasses look it up
-_spec.loader.exec_module(bench)
+import workspace_tools.bench.table as bench
+from workspace_tools.bench.common import lockstep_speedup_bound
 
 
 def report(repetitions: int, independent: list[float]) -> dict:
@@ -58,10 +52,10 @@ def test_a_run_without_two_free_cores_says_so(capsys, independent, warned):
 
 
 def test_the_lockstep_bound_is_two_for_equal_steps_and_lower_the_wider_they_spread():
-    assert bench.lockstep_speedup_bound([0.001] * 50) == pytest.approx(2.0)
+    assert lockstep_speedup_bound([0.001] * 50) == pytest.approx(2.0)
     # half the steps take 1 ms, half 3 ms: the slower of two takes 3 ms with probability 3/4, mean 2 ms
-    assert bench.lockstep_speedup_bound([0.001, 0.003] * 50) == pytest.approx(2 * 2.0 / 2.5)
-    assert bench.lockstep_speedup_bound([0.001, 0.003] * 50, n=4) == pytest.approx(4 * 2.0 / (3 - 2 / 16))
+    assert lockstep_speedup_bound([0.001, 0.003] * 50) == pytest.approx(2 * 2.0 / 2.5)
+    assert lockstep_speedup_bound([0.001, 0.003] * 50, n=4) == pytest.approx(4 * 2.0 / (3 - 2 / 16))
 
 
 # -- ./ws bench --markdown: docs/reference/performance.md ----------------------------------------------------

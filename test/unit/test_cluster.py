@@ -11,6 +11,8 @@ import pytest
 from robot_rl import cluster
 from workspace_tools.ray_cluster import _address
 
+pytestmark = pytest.mark.ray  # needs Ray (requirements-distributed.txt)
+
 
 def test_a_head_gets_the_workspace_options(tmp_path):
     command = cluster.ray_start_command(tmp_path / "ray", port=6380, num_cpus=2)

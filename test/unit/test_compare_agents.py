@@ -1,21 +1,14 @@
 """compare_agents.py's choices: the task (--task), the agents that can act in its action space, and the table
 naming each agent's params file. No ROS master; the deep agents' packages (torch) are imported."""
-import importlib.util
-import sys
-from pathlib import Path
-
 import pytest
 
+import workspace_tools.compare as compare_agents
 from hopper_training.envs.hop_in_place import HOP_IN_PLACE as HOP_LEVEL
 from hopper_training.envs.stay_up import STAY_UP
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from robot_rl import ParamError
 
-COMPARE = Path(__file__).resolve().parents[2] / "workspace_tools" / "scripts" / "compare_agents.py"
-_spec = importlib.util.spec_from_file_location("workspace_compare_agents", COMPARE)
-assert _spec is not None and _spec.loader is not None
-compare_agents = sys.modules["workspace_compare_agents"] = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(compare_agents)
+pytestmark = pytest.mark.deep  # needs torch and Stable-Baselines3 (requirements-deep.txt)
 
 
 def test_the_task_is_the_robot_s_first_unless_named():

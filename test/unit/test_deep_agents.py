@@ -34,6 +34,8 @@ from robot_rl import (
 )
 from workspace_tools.ship import ship_run
 
+pytestmark = pytest.mark.deep  # needs torch and Stable-Baselines3 (requirements-deep.txt)
+
 
 @pytest.mark.parametrize("task", [*CUBE_TASKS, *HOPPER_TASKS], ids=lambda t: t.env_id)
 def test_sb3_check_env_passes_on_every_task(task):

@@ -20,6 +20,8 @@ from robot_rl import ParamError
 
 from fake_backend import FakeBackend
 
+pytestmark = pytest.mark.deep  # needs torch and Stable-Baselines3 (requirements-deep.txt)
+
 CONFIG = parse_robot_config(yaml.safe_load(Path(MONOPED.sim_config_path).read_text()), "hopper_sim.yaml")
 START = STAY_UP.default_params().start_pose
 START_TARGETS = [START.haa, START.hfe, START.kfe]

@@ -4,21 +4,15 @@ from __future__ import annotations
 
 import difflib
 import importlib
-import importlib.util
 from pathlib import Path
 from types import ModuleType
 
 REPO = Path(__file__).resolve().parents[2]
-GENERATOR = REPO / "workspace_tools" / "scripts" / "write_tasks_doc.py"
 PAGE = REPO / "docs" / "reference" / "tasks.md"
 
 
 def load_generator() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("write_tasks_doc", GENERATOR)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return importlib.import_module("workspace_tools.tasks_doc")
 
 
 def test_the_tasks_page_is_what_its_generator_writes():

@@ -2,7 +2,7 @@
 
 `LoopbackCluster(folder, nodes=2)` starts a head (`ray start --head --block`) and nodes - 1 nodes joining it
 (`ray start --address ... --block`), each in a session of its own with a Ray temp folder of its own and
-`cpus_per_node` CPUs (the head `head_cpus` if given), with robot_rl.cluster's options (no dashboard, no usage
+`cpus_per_node` CPUs (the head `head_cpus` if given), with robot_rl.workers.cluster's options (no dashboard, no usage
 statistics, a small object store, a token: one per process, TOKEN, as Ray reads a driver's once). Every node
 carries a mark in its environment, which every process it starts inherits (Ray's daemons, its workers and what
 they start: env workers' masters and sim nodes), so `processes()` finds them all. `connect()` makes this
@@ -11,7 +11,7 @@ process the cluster's driver (until `disconnect()`); `kill_node(i)` kills node i
 still carries the mark and returns those pids (none, when all ended cleanly). Use it as a context manager.
 
 Ray 2.60 does not put a node on 127.0.0.1: it advertises the machine's address and its servers listen on
-every interface (robot_rl.cluster); `listening_sockets()` says where each process of the cluster listens.
+every interface (robot_rl.workers.cluster); `listening_sockets()` says where each process of the cluster listens.
 """
 from __future__ import annotations
 

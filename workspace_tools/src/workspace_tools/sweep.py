@@ -67,6 +67,7 @@ from robot_rl import (
 )
 from workspace_tools import sweep_spec
 from workspace_tools.processes import launch_args
+from workspace_tools.robots import robot_of_package
 from workspace_tools.sweep_spec import SweepError, SweepSpec, Trial, format_value, parse_sweep, trial_config
 from workspace_tools.sweep_table import TrialResult, plot_curves, write_table
 
@@ -133,7 +134,7 @@ def _train(job: TrialJob) -> None:
     job.log_dir.mkdir(parents=True, exist_ok=True)
     env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{free_port()}", ROS_HOSTNAME="127.0.0.1",
                ROS_IP="127.0.0.1", ROS_LOG_DIR=str(job.log_dir), ROS_HOME=str(job.log_dir))
-    task_arg = [f"task:={job.task}"] if job.package == "hopper_training" else []
+    task_arg = [f"task:={job.task}"] if robot_of_package(job.package).task_arg else []
     agent_args = launch_args(**{"agent_config": job.agent_config} if job.agent_config else {},
                              **{"max_steps": job.max_steps} if job.max_steps else {})
     command = ["rosrun", "workspace_tools", "roslaunch_checked.py", job.package, "main.launch", *task_arg,
@@ -309,7 +310,7 @@ def _open_sweep(spec: SweepSpec) -> tuple[SweepSpec, Path]:
 
 
 def _start_ray(spec: SweepSpec, temp_dir: str) -> None:
-    """Join `spec.cluster` (robot_rl.cluster.connect: "ray" or HOST:PORT), else start Ray on this machine."""
+    """Join `spec.cluster` (robot_rl.workers.cluster.connect: "ray" or HOST:PORT), else start Ray on this machine."""
     if spec.cluster:
         from robot_rl import connect
         connect(spec.cluster)

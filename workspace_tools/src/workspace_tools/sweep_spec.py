@@ -41,9 +41,8 @@ from robot_rl import (
     load_yaml_file,
     parse_scalar,
 )
+from workspace_tools.robots import DEFAULT_ROBOT, ROBOTS
 
-ROBOTS = {"cube": "moving_cube_training", "hopper": "hopper_training"}  # as ./ws run names them
-DEFAULT_ROBOT = "cube"
 # The arguments that say how a sweep runs, not which trials it has: a resumed sweep may change them.
 RUN_OPTIONS = ("name", "resume", "cluster", "concurrent", "results_dir")
 OPTIONS = (*RUN_OPTIONS, "task", "agent", "seeds", "max_steps", "max_failures", "eval_episodes", "eval_seed")
@@ -210,7 +209,7 @@ def parse_sweep(argv: Sequence[str]) -> SweepSpec:
     robot = args.pop(0) if args and ":=" not in args[0] else DEFAULT_ROBOT
     if robot not in ROBOTS:
         raise SweepError(f"unknown robot {robot!r} (known: {', '.join(ROBOTS)})")
-    package = ROBOTS[robot]
+    package = ROBOTS[robot].package
     given: dict[str, str] = {}
     for arg in args:
         name, sep, value = arg.partition(":=")
