@@ -11,7 +11,6 @@ import robot_rl
 from workspace_tools.paths import REPO
 from workspace_tools.pytest_markers import REQUIREMENTS, markers_of, module_markers, requirements_of
 
-
 # What in a test's source needs the optional packages: the deep agents (robot_rl.agents.sb3, SB3, torch) and Ray
 # (robot_rl.workers' Ray actors and cluster), imported by module, or by a name robot_rl's face loads from them.
 USES = {"deep": re.compile(r"^ *(import|from) (torch|stable_baselines3)\b|robot_rl\.agents\.sb3", re.M),

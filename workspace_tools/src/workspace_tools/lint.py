@@ -55,7 +55,7 @@ def lint(root: Path) -> None:
         # The packages' sources, not the devel space's relays to them (import-linter reads the files it finds).
         sources = [str(path) for path in sorted(root.glob("*/src")) if path.is_dir()]
         env = {**os.environ, "PYTHONPATH": os.pathsep.join([*sources, os.environ.get("PYTHONPATH", "")])}
-        checked = subprocess.run(["lint-imports", "--no-cache", "--config", IMPORT_CONTRACTS], cwd=root, env=env,
+        checked = subprocess.run(["lint-imports", "--no-cache", IMPORT_CONTRACTS], cwd=root, env=env,
                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         if checked.returncode != 0:
             print(checked.stdout.split("Broken contracts", 1)[-1].strip("\n-"), file=sys.stderr)
