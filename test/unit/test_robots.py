@@ -28,7 +28,7 @@ def test_each_robot_names_its_package_launch_files_and_default_task(name):
     assert ("task" in declared and declared["task"].get("default") is not None) == robot.task_arg
     if robot.task_arg:
         assert declared["task"].get("default") == robot.default_task
-    assert tasks[0].results_name == robot.namespace  # its default task's runs go to results_dir/NAMESPACE/
+    assert all(task.reward_topic.startswith(f"/{robot.namespace}/") for task in tasks)  # ./ws plot /NAMESPACE
 
 
 def test_names_and_packages_are_looked_up_both_ways():

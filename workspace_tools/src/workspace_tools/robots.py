@@ -1,4 +1,4 @@
-"""The robots ./ws knows by name (cube, hopper): each one's training package, launch files and results namespace.
+"""The robots ./ws knows by name (cube, hopper): each one's training package, launch files and ROS namespace.
 
 The one place that maps a robot's name to its packages; ./ws (workspace_tools.cli), the sweeps, the bench and
 run_openai_ros_envs read it. Plain strings: reading it imports no robot package.
@@ -14,7 +14,7 @@ class Robot:
 
     name: str               # as ./ws run, rviz, sweep, demo take it
     package: str            # its training package: TASKS, launch/main.launch, evaluate.py, policies/
-    namespace: str          # its results folder (results_dir/NAMESPACE/) and reward topics' namespace
+    namespace: str          # its reward topics' namespace (./ws plot /NAMESPACE)
     sim_launch: str         # pybullet_sim's launch file of its sim (./ws rviz)
     default_task: str       # the task main.launch trains unless task:= says otherwise (its package's first)
     task_arg: bool          # whether main.launch takes task:= (the cube's sets its one task itself)

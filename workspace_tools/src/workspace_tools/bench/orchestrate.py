@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import datetime
+import importlib
 import json
 import os
 import platform
@@ -16,6 +17,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
+from robot_rl import find_task
 from workspace_tools.bench.common import (
     DEEP_STEPS,
     DISTRIBUTED_ENVS,
@@ -73,7 +75,12 @@ def _cube_training_wall_time(log_dir: Path, episodes: int) -> float:
         master.close()
     if result.returncode != 0:
         raise RuntimeError(f"cube training failed:\n{result.stdout[-3000:]}")
-    return json.loads((results / CUBE.namespace / "latest" / "summary.json").read_text())["wall_time_s"]
+    return json.loads((results / _cube_results_name() / "latest" / "summary.json").read_text())["wall_time_s"]
+
+
+def _cube_results_name() -> str:
+    """The folder the cube's default task writes its runs to, below results_dir."""
+    return find_task(list(importlib.import_module(CUBE.package).TASKS), CUBE.default_task).results_name
 
 
 def _sweep_wall_time(folder: Path, seeds: str) -> float:
@@ -96,7 +103,7 @@ def _sweep_recovery_time(folder: Path) -> float:
     The sweep is then ended (its driver's process group killed, then the cluster closed by PID); RuntimeError if
     the trial does not resume in time."""
     from workspace_tools.ray_cluster import LoopbackCluster
-    sweep = folder / "results" / CUBE.namespace / "lost"
+    sweep = folder / "results" / _cube_results_name() / "lost"
     logs = [sweep / "logs" / f"seed={seed}" / "training.log" for seed in (0, 1)]
     cluster = LoopbackCluster(folder / "cluster", nodes=3, cpus_per_node=1)
     try:
