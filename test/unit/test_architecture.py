@@ -1,5 +1,5 @@
 """docs/reference/architecture.md's module tables name every first-party module of the tree, and nothing else:
-under "## Modules", one `### \`<package>\`` table per package, its first column the module's path below
+under "## Modules", one "### `<package>`" table per package, its first column the module's path below
 <package>/src/<package>/ (package __init__.py files are the packages themselves, not listed)."""
 import re
 
