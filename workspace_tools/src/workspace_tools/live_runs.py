@@ -17,6 +17,7 @@ import time
 import xmlrpc.client
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from workspace_tools.paths import REPO
 
@@ -100,15 +101,16 @@ def _alive(pid: int) -> bool:
 def _answers(master_uri: str, run_id: str) -> bool:
     """Whether the master at master_uri answers, within ANSWER_TIMEOUT_S, with this /run_id."""
     class Transport(xmlrpc.client.Transport):
-        def make_connection(self, host):  # type: ignore[no-untyped-def]
+        def make_connection(self, host):
             connection = super().make_connection(host)
             connection.timeout = ANSWER_TIMEOUT_S
             return connection
     try:
-        code, _, value = xmlrpc.client.ServerProxy(master_uri, transport=Transport()).getParam("/ws", "/run_id")
-    except (OSError, xmlrpc.client.Error, ValueError):
+        answer: Any = xmlrpc.client.ServerProxy(master_uri, transport=Transport()).getParam("/ws", "/run_id")
+        code, _, value = answer
+    except (OSError, xmlrpc.client.Error, ValueError, TypeError):
         return False
-    return code == 1 and value == run_id
+    return bool(code == 1 and value == run_id)
 
 
 def _read(path: Path) -> LiveRun | None:

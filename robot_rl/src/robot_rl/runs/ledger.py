@@ -204,6 +204,7 @@ class RunLedger:
         if steps <= 0 or now <= self._started:
             return math.nan
         rate = steps / (now - self._started)
+        left: float
         if self.max_steps:
             left = self.max_steps - self.state.env_steps
         elif self.recent_lengths:
