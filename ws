@@ -13,6 +13,9 @@ VENV="$STATE/venv"
 BUILD="$STATE/build"
 DEVEL="$STATE/devel"
 SYSTEM_PYTHON=/usr/bin/python3
+# The caller's ROS master, if it chose one (ROS_MASTER_URI set): it wins. Without it ./ws run takes port 11311
+# (another if taken) and ./ws plot, rviz and exec join the run going on (workspace_tools.cli, live_runs).
+export WS_CALLER_MASTER="${ROS_MASTER_URI:-}"
 
 # Debian 12's ROS 1 (ROS is not on PyPI) and the build tools catkin needs.
 APT_PACKAGES=(
@@ -125,7 +128,7 @@ free_port() {
   "$SYSTEM_PYTHON" -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'
 }
 
-# A private master for commands that start their own (run, test, bench), unless the caller chose one.
+# A private master for commands that start their own (test, bench), unless the caller chose one.
 private_master() {
   if [ -z "${ROS_MASTER_URI:-}" ]; then
     export ROS_MASTER_URI="http://127.0.0.1:$(free_port)"

@@ -5,6 +5,7 @@ import os
 import pytest
 
 import workspace_tools.cli as cli
+import workspace_tools.live_runs as cli_live_runs
 from workspace_tools.paths import REPO
 from workspace_tools.ws_messages import WsError
 
@@ -47,7 +48,8 @@ def test_no_command_prints_the_usage_and_exits_2(capsys):
     (["rviz", "fly"], "unknown robot 'fly' (known: cube, hopper)"),
     (["demo", "fly"], "unknown robot 'fly' (known: cube, hopper)"),
     (["demo", "cube", "policy:=../x"], "no shipped policy '../x' for cube (known: demo)"),
-    (["demo", "cube", "a.mp4", "b.mp4"], "usage: ./ws demo [cube|hopper] [policy:=NAME] [VIDEO.mp4]"),
+    (["demo", "cube", "a.mp4", "b.mp4"], "usage: ./ws demo [cube|hopper] [policy:=NAME|run:=RUN_FOLDER] [VIDEO.mp4]"),
+    (["demo", "cube", "run:=/nonexistent"], "run:=/nonexistent: no such run folder (a training_results/<task>/<run>/ folder)"),
     (["cluster"], "usage: ./ws cluster start|join ADDRESS|stop|status"),
     (["cluster", "status", "now"], "usage: ./ws cluster status"),
     (["cluster", "join"], "usage: ./ws cluster join ADDRESS (HOST:PORT of the head)"),
@@ -67,13 +69,13 @@ def test_rviz_needs_a_display(monkeypatch):
     with pytest.raises(WsError, match=r"^rviz:=true needs a display \(DISPLAY is not set\)$"):
         cli.plan(["run", "rviz:=True"])
     monkeypatch.setenv("DISPLAY", ":1")
-    assert cli.plan(["run", "hopper", "rviz:=1"]).needs == ["apt rviz", "private-master"]
+    assert cli.plan(["run", "hopper", "rviz:=1"]).needs == ["apt rviz"]
 
 
 @pytest.mark.parametrize("argv, needs", [
-    (["run"], ["private-master"]),
+    (["run"], []),  # its master: 11311, or a free port if taken (chosen when it runs)
     (["run", "agent:=qlearn", "agent:=sac", "cluster:=ray"],
-     ["requirements requirements-deep.txt", "requirements requirements-distributed.txt", "private-master"]),
+     ["requirements requirements-deep.txt", "requirements requirements-distributed.txt"]),
     (["test", "--quick", "test/unit/test_processes.py"], ["private-master"]),
     (["test", "--quick", "test/unit/test_agents.py::test_x", "-k", "x"],
      ["requirements requirements-deep.txt", "private-master"]),
@@ -97,18 +99,45 @@ def test_what_a_command_needs_first(argv, needs, capsys):
     assert capsys.readouterr().out.splitlines() == needs
 
 
-def test_run_starts_the_robot_s_training_launch_with_its_results_folder(no_exec):
+def test_run_starts_the_robot_s_training_launch_quiet_with_its_results_folder(no_exec, monkeypatch):
+    monkeypatch.setenv("WS_CALLER_MASTER", "http://127.0.0.1:1")
+    monkeypatch.setenv("ROS_MASTER_URI", "http://127.0.0.1:1")
     assert cli.main(["run", "hopper", "task:=hop"]) == 127  # execvp replaced: it returns
-    assert no_exec == [["rosrun", "workspace_tools", "roslaunch_checked.py", "hopper_training", "main.launch",
-                        f"results_dir:={REPO}/training_results", "task:=hop"]]
+    assert cli.main(["run", "cube", "quiet:=false"]) == 127
+    assert no_exec == [["rosrun", "workspace_tools", "roslaunch_checked.py", "--quiet", "hopper_training", "main.launch",
+                        f"results_dir:={REPO}/training_results", "quiet:=true", "task:=hop"],
+                       ["rosrun", "workspace_tools", "roslaunch_checked.py", "moving_cube_training", "main.launch",
+                        f"results_dir:={REPO}/training_results", "quiet:=false"]]
+    assert os.environ["ROS_MASTER_URI"] == "http://127.0.0.1:1", "the caller's master wins"
 
 
-def test_demo_plays_the_shipped_policy_into_a_video(no_exec, tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)
+def test_run_takes_port_11311_when_free_else_another_and_says_so(no_exec, monkeypatch, capsys):
+    monkeypatch.setenv("WS_CALLER_MASTER", "")
+    monkeypatch.setenv("ROS_MASTER_URI", "http://127.0.0.1:11311")
+    for free in (True, False):
+        monkeypatch.setattr(cli_live_runs, "port_is_free", lambda port, host="127.0.0.1", free=free: free)
+        cli.main(["run"])
+        line = capsys.readouterr().err
+        if free:
+            assert os.environ["ROS_MASTER_URI"] == "http://127.0.0.1:11311" and line.count("\n") == 1, line
+        else:
+            assert os.environ["ROS_MASTER_URI"] != "http://127.0.0.1:11311", line
+            assert line.startswith("[ws] port 11311 is taken") and os.environ["ROS_MASTER_URI"] in line, line
+
+
+def test_demo_plays_the_shipped_policy_into_demos_and_never_overwrites(no_exec, tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(cli, "DEMOS", tmp_path / "demos")
     cli.main(["demo", "cube"])
-    assert no_exec == [["rosrun", "moving_cube_training", "evaluate.py", "--run",
-                        str(REPO / "moving_cube_training" / "policies" / "demo"), "--episodes", "1", "--video",
-                        str(tmp_path / "demo_cube.mp4"), "--video-episodes", "1"]]
+    (tmp_path / "demos" / "demo_cube.mp4").write_bytes(b"a video")
+    cli.main(["demo", "cube"])
+    shipped = str(REPO / "moving_cube_training" / "policies" / "demo")
+    assert no_exec == [["rosrun", "moving_cube_training", "evaluate.py", "--run", shipped, "--episodes", "1", "--video",
+                        str(tmp_path / "demos" / name), "--video-episodes", "1"]
+                       for name in ("demo_cube.mp4", "demo_cube-2.mp4")]
+    assert capsys.readouterr().err == "[ws] demos/demo_cube.mp4 exists: this video goes to demos/demo_cube-2.mp4\n"
+    monkeypatch.chdir(tmp_path / "demos")
+    assert cli.main(["demo", "cube", "demo_cube.mp4"]) == 1
+    assert capsys.readouterr().err == "[ws] error: demo_cube.mp4 exists: give another name (or delete it)\n"
 
 
 def test_sweep_results_go_where_run_puts_them_unless_given(no_exec):

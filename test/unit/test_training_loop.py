@@ -175,8 +175,10 @@ def test_progress_lines_give_rate_eta_and_the_headline_metric(tmp_path):
     assert len(progress) == 4, log
     assert progress[-1].startswith("progress: episode 4/4 (100 %), ")
     assert "env steps/s, ETA 0:00:00, success_rate over the last 4 episodes: " in progress[-1]
-    assert [line.split(" - ")[0] for line in episode_lines] == ["EP: 1", "EP: 2", "EP: 3", "EP: 4"]
-    assert not any(line.startswith("EP: ") for line in log), "per-episode lines go to log_episode"
+    assert [line.split(" - ")[0] for line in episode_lines[:4]] == ["EP: 1", "EP: 2", "EP: 3", "EP: 4"]
+    assert "PICTURE" in episode_lines[4] and episode_lines[5].startswith("Overall score"), episode_lines
+    assert not any(line.startswith("EP: ") or "PICTURE" in line or "score" in line for line in log), \
+        "per-episode lines and the tutorial's closing lines go to log_episode (quiet:=true: the debug level)"
 
 
 @pytest.mark.parametrize("damage, reason", [

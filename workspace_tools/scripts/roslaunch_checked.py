@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """roslaunch a file; end when its required nodes end, and exit with their exit code.
 
-  roslaunch_checked.py [PACKAGE] LAUNCH_FILE [NAME:=VALUE ...]
+  roslaunch_checked.py [--quiet] [PACKAGE] LAUNCH_FILE [NAME:=VALUE ...]
 
 What plain roslaunch does not: a required node (here: a training node) that fails makes the command
 fail (roslaunch exits 0 whatever its nodes did), a required node that finishes cleanly ends the
@@ -10,20 +10,31 @@ master if none is running, as roslaunch does. Nothing it started outlives it, ho
 included: workspace_tools.launch_reaper). A YAML file with rosparam's !radians tag, which rosparam
 evaluates with eval(), is refused before anything in it runs. A relative or ~ results_dir:= is made
 absolute against the folder it runs in.
+
+--quiet (what ./ws run passes unless quiet:=false): roslaunch's own screen lines (the parameter summary, the
+master's and each process's start and end) go to roslaunch-screen.log in the launch's log folder
+(~/.ros/log/RUN_ID/) instead; its errors still go to stderr, and the nodes' own output to the screen. With
+$WS_RUN_RECORD set (by ./ws run: {"folder": ..., "command": ...}), the run is recorded there once its master
+is up, for ./ws plot, rviz and exec to join (workspace_tools.live_runs), and the record removed when it ends.
 """
+import json
 import os
 import sys
+from pathlib import Path
 from typing import Any
 
+import rosgraph
 import roslaunch
 import roslaunch.core
 import roslaunch.parent
 import roslaunch.pmon
 import roslaunch.rlutil
 import rosparam  # noqa: F401 (registers its YAML tags, which refuse_evaluated_yaml_tags then replaces)
+import rospkg
 import yaml
 
 from workspace_tools.launch_reaper import watch_launch
+from workspace_tools.live_runs import RECORD_VARIABLE, record
 
 INTERRUPTED = 130  # the shell's code for a command ended by SIGINT
 
@@ -81,13 +92,39 @@ def too_big_for_ros(parent) -> str:
     return f" (a ROS param is a 32-bit int at most: {', '.join(names)})" if names else ""
 
 
+def screen_to_log(uuid: str) -> None:
+    """roslaunch's own screen lines (it prints them to sys.stdout) into roslaunch-screen.log of the launch's log
+    folder; the nodes started from now on still write to the terminal (they inherit file descriptor 1)."""
+    folder = Path(rospkg.get_log_dir()) / uuid
+    folder.mkdir(parents=True, exist_ok=True)
+    sys.stdout = open(folder / "roslaunch-screen.log", "a", buffering=1)  # noqa: SIM115 (open until the end)
+
+
+def record_run(uuid: str, wanted: str) -> Path | None:
+    """The run's record for ./ws plot, rviz and exec (if ./ws run asked for one: `wanted`), once the master is up."""
+    if not wanted:
+        return None
+    try:
+        request = json.loads(wanted)
+        return record(Path(request["folder"]), rosgraph.get_master_uri(), uuid, request["command"],
+                      request.get("robot", ""))
+    except (OSError, ValueError, KeyError, TypeError) as error:  # the run goes on; only joining it needs the uri
+        print(f"roslaunch_checked.py: could not record the run for ./ws plot, rviz and exec: {error}", file=sys.stderr)
+        return None
+
+
 def main(argv) -> int:
+    quiet = bool(argv) and argv[0] == "--quiet"
+    argv = argv[1:] if quiet else argv
     if not argv or argv[0] in ("-h", "--help"):
         print(__doc__, file=sys.stderr)
         return 2
     launch_file = roslaunch.rlutil.resolve_launch_arguments(argv)[0]
     launch_args = [absolute_paths(arg) for arg in argv if ":=" in arg]
     uuid = roslaunch.rlutil.get_or_generate_uuid(None, False)
+    wanted_record = os.environ.pop(RECORD_VARIABLE, "")  # not for the nodes this launch starts
+    if quiet:
+        screen_to_log(uuid)
     roslaunch.configure_logging(uuid)
     refuse_evaluated_yaml_tags()
     watch_launch()
@@ -109,9 +146,12 @@ def main(argv) -> int:
         if process.required:
             process.required = False
             codes.ends_launch.add(process.name)
+    recorded = record_run(uuid, wanted_record)
     try:
         parent.spin()
     finally:
+        if recorded is not None:
+            recorded.unlink(missing_ok=True)
         parent.shutdown()
     if codes.finished is not None:
         code = codes.finished or (codes.failures[0] if codes.failures else 0)

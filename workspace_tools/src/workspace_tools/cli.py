@@ -9,6 +9,7 @@ A command's arguments are checked once, by its parser, in both; a wrong one exit
 """
 from __future__ import annotations
 
+import json
 import os
 import re
 import subprocess
@@ -18,10 +19,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from workspace_tools.lint import lint
+from workspace_tools.live_runs import RECORD_VARIABLE, LiveRun, join_line, live_runs, run_master_uri, runs_folder
 from workspace_tools.paths import REPO
 from workspace_tools.pytest_markers import requirements_of
 from workspace_tools.robots import DEFAULT_ROBOT, DEMO_ROBOT, ROBOTS, UnknownRobot, find_robot
-from workspace_tools.ws_messages import WsError
+from workspace_tools.ws_messages import WsError, log
 
 USAGE = """\
 The workspace's one entry script. Every command first makes sure the workspace is set up (Debian's
@@ -43,9 +45,11 @@ does only what is missing, so a second run starts in seconds.
   ./ws sweep [cube|hopper] [seeds:=0-9] [NAME:=V1,V2 ...] [max_steps:=N] [name:=SWEEP] [resume:=true] [cluster:=ray|ADDRESS]
                               many training runs on Ray Tune, a table and a plot (installs requirements-distributed.txt)
   ./ws cluster start|join ADDRESS|stop|status  this machine's Ray node (installs requirements-distributed.txt)
-  ./ws demo [cube|hopper] [policy:=NAME] [VIDEO.mp4]  a shipped trained policy (<package>/policies/NAME,
-                              default demo) plays one episode, recorded to VIDEO.mp4 (default ./demo_<robot>.mp4),
-                              then evaluate.py's JSON (a deep agent's policy also installs requirements-deep.txt)
+  ./ws demo [cube|hopper] [policy:=NAME|run:=RUN_FOLDER] [VIDEO.mp4]  a shipped trained policy
+                              (<package>/policies/NAME, default demo), or a run of yours, plays one episode, recorded
+                              to VIDEO.mp4 (never overwritten; default demos/demo_<robot>.mp4, or demos/<run>.mp4,
+                              a new name if it exists), then evaluate.py's JSON (a deep agent's policy also installs
+                              requirements-deep.txt)
   ./ws setup [deep|distributed]  only the set-up (deep: also torch and stable-baselines3; distributed: also Ray)
   ./ws help                   this text and the arguments of every launch file ./ws run starts
 """  # noqa: E501 (the usage's lines are as wide as its commands)
@@ -54,6 +58,12 @@ DEEP, DISTRIBUTED, DEV = "requirements-deep.txt", "requirements-distributed.txt"
 RVIZ_APT, PLOT_APT, TEST_APT = ["rviz"], ["python3-tk"], ["xvfb"]  # Debian's, installed only when asked for
 PRIVATE_MASTER = "private-master"  # a master on a free port unless the caller set ROS_MASTER_URI
 RESULTS = REPO / "training_results"
+DEMOS = REPO / "demos"  # ./ws demo's videos (ignored by git)
+WS_RUN_VARIABLE = "WS_RUN"  # robot_rl.runs.next_steps's (not imported: ./ws starts without numpy)
+CALLER_MASTER = "WS_CALLER_MASTER"  # ws sets it to the caller's ROS_MASTER_URI ("" if none): the caller's wins
+# The robots' rviz configs (package, file), for ./ws rviz on a run that is going on (robot_rl's watch.launch).
+RVIZ_CONFIGS = {"cube": ("moving_cube_description", "rviz/moving_cube.rviz"),
+                "hopper": ("hopper_description", "rviz/monoped.rviz")}
 
 
 @dataclass
@@ -116,19 +126,73 @@ def run(args: list[str]) -> Plan:
     if any(re.fullmatch(r"rviz:=(true|1)", arg, re.IGNORECASE) for arg in args):
         _display("rviz:=true")
         needs += _apt(RVIZ_APT)
-    return Plan([*needs, PRIVATE_MASTER], ["rosrun", "workspace_tools", "roslaunch_checked.py", *robot.training_launch,
-                                           f"results_dir:={RESULTS}", *args])
+    # Quiet unless quiet:=false: the EP: lines and the tutorial's closing lines at debug level, roslaunch's own
+    # lines (its parameter dump, each process's start and end) in its log folder.
+    quiet = not re.fullmatch(r"(?i)false|0", _last(args, "quiet"))
+    command = " ".join(["./ws run", robot.name, *args])
+    return Plan(needs, ["rosrun", "workspace_tools", "roslaunch_checked.py", *(["--quiet"] if quiet else []),
+                        *robot.training_launch, f"results_dir:={RESULTS}", *([] if _last(args, "quiet") else
+                                                                              ["quiet:=true"]), *args],
+                before=lambda: _run_master(command, robot.name))
+
+
+def _caller_chose_master() -> bool:
+    return bool(os.environ.get(CALLER_MASTER))
+
+
+def _run_master(command: str, robot: str) -> None:
+    """A new run's master: the caller's ROS_MASTER_URI, else 11311 if free, else a free port; one line says which.
+    roslaunch_checked.py records the run for ./ws plot, rviz and exec (workspace_tools.live_runs)."""
+    if _caller_chose_master():
+        log(f"this run's ROS master: {os.environ['ROS_MASTER_URI']} (your ROS_MASTER_URI)")
+    else:
+        os.environ["ROS_MASTER_URI"], line = run_master_uri()
+        log(line)
+    os.environ[RECORD_VARIABLE] = json.dumps({"folder": str(runs_folder()), "command": command, "robot": robot})
+    os.environ[WS_RUN_VARIABLE] = f"./ws run {robot}"  # the training node's end block gives ./ws commands
+
+
+def _join_run() -> LiveRun | None:
+    """The newest run ./ws run has going (its master set as ROS_MASTER_URI, one line saying which), unless the
+    caller set ROS_MASTER_URI or no run is going (then ROS_MASTER_URI stays as ws set it: 11311)."""
+    if _caller_chose_master():
+        return None
+    runs = live_runs()
+    if not runs:
+        return None
+    os.environ["ROS_MASTER_URI"] = runs[0].master_uri
+    log(join_line(runs))
+    return runs[0]
+
+
+def _join() -> None:
+    _join_run()
 
 
 def rviz(args: list[str]) -> Plan:
     name = args.pop(0) if args and ":=" not in args[0] else DEFAULT_ROBOT
     robot = ROBOTS[_robot(name)]
     _display("rviz")
-    return Plan(_apt(RVIZ_APT), ["roslaunch", *robot.sim, "rviz:=true", "paused:=false", *args])
+    todo = Plan(_apt(RVIZ_APT), ["roslaunch", *robot.sim, "rviz:=true", "paused:=false", *args])
+
+    def join() -> None:  # a run going on: rviz on its sim, not a second sim on its master
+        joined = _join_run()
+        if joined is not None:
+            watched = ROBOTS.get(joined.robot, robot)
+            package, config = RVIZ_CONFIGS[watched.name]
+            namespace = watched.namespace
+            todo.argv = ["roslaunch", "robot_rl", "watch.launch", f"joint_states:=/{namespace}/joint_states",
+                         f"rviz_config:={_package_path(package)}/{config}"]
+    todo.before = join
+    return todo
+
+
+def _package_path(package: str) -> str:
+    return subprocess.run(["rospack", "find", package], capture_output=True, text=True, check=True).stdout.strip()
 
 
 def plot(args: list[str]) -> Plan:
-    return Plan(_apt(PLOT_APT), ["rosrun", "robot_rl", "plot_rewards.py", *args])
+    return Plan(_apt(PLOT_APT), ["rosrun", "robot_rl", "plot_rewards.py", *args], before=_join)
 
 
 def help_text() -> str:
@@ -199,22 +263,52 @@ def cluster(args: list[str]) -> Plan:
 
 
 def demo(args: list[str]) -> Plan:
-    name, policy = DEMO_ROBOT, "demo"
-    if args and not args[0].endswith(".mp4") and not args[0].startswith("policy:="):
+    name, policy, run_path = DEMO_ROBOT, "demo", ""
+    if args and not args[0].endswith(".mp4") and ":=" not in args[0]:
         name = args.pop(0)
     if args and args[0].startswith("policy:="):
         policy = args.pop(0).removeprefix("policy:=")
+    elif args and args[0].startswith("run:="):
+        run_path = args.pop(0).removeprefix("run:=")
     robot = ROBOTS[_robot(name)]
-    if len(args) > 1:
-        raise WsError("usage: ./ws demo [cube|hopper] [policy:=NAME] [VIDEO.mp4]")
-    shipped = REPO / robot.package / "policies"
-    if not re.fullmatch(r"[A-Za-z0-9_-]+", policy) or not (shipped / policy).is_dir():
-        known = ", ".join(sorted(path.name for path in shipped.iterdir())) if shipped.is_dir() else ""
-        raise WsError(f"no shipped policy '{policy}' for {name} (known: {known})")
-    video = os.path.realpath(args[0] if args else f"demo_{name}.mp4")
-    needs = _requirements(DEEP) if (shipped / policy / "agent.json").is_file() else []
-    return Plan(needs, ["rosrun", robot.package, "evaluate.py", "--run", str(shipped / policy), "--episodes", "1",
-                        "--video", video, "--video-episodes", "1"])
+    if len(args) > 1 or (args and not args[0].endswith(".mp4")):
+        raise WsError("usage: ./ws demo [cube|hopper] [policy:=NAME|run:=RUN_FOLDER] [VIDEO.mp4]")
+    if run_path:
+        played = Path(run_path).resolve()
+        if not played.is_dir():
+            raise WsError(f"run:={run_path}: no such run folder (a training_results/<task>/<run>/ folder)")
+        default_name = f"{played.name}.mp4"
+    else:
+        shipped = REPO / robot.package / "policies"
+        if not re.fullmatch(r"[A-Za-z0-9_-]+", policy) or not (shipped / policy).is_dir():
+            known = ", ".join(sorted(path.name for path in shipped.iterdir())) if shipped.is_dir() else ""
+            raise WsError(f"no shipped policy '{policy}' for {name} (known: {known})")
+        played = shipped / policy
+        default_name = f"demo_{name}.mp4" if policy == "demo" else f"demo_{name}_{policy}.mp4"
+    if args and Path(args[0]).exists():  # a video named by the caller is never overwritten
+        raise WsError(f"{args[0]} exists: give another name (or delete it)")
+    needs = _requirements(DEEP) if (played / "agent.json").is_file() else []
+    todo = Plan(needs, ["rosrun", robot.package, "evaluate.py", "--run", str(played), "--episodes", "1", "--video",
+                        os.path.realpath(args[0]) if args else "", "--video-episodes", "1"])
+
+    def default_video() -> None:  # chosen when it runs (not in `needs`): demos/, a new name if taken
+        if not args:
+            DEMOS.mkdir(exist_ok=True)
+            assert todo.argv is not None
+            todo.argv[todo.argv.index("--video") + 1] = str(_new_video(DEMOS / default_name))
+    todo.before = default_video
+    return todo
+
+
+def _new_video(path: Path) -> Path:
+    """`path`, or the first of PATH-2.mp4, PATH-3.mp4, ... that does not exist (one line says so)."""
+    if not path.exists():
+        return path
+    number = 2
+    while (other := path.with_name(f"{path.stem}-{number}{path.suffix}")).exists():
+        number += 1
+    log(f"{path.parent.name}/{path.name} exists: this video goes to {other.parent.name}/{other.name}")
+    return other
 
 
 def python(args: list[str]) -> Plan:
@@ -224,7 +318,7 @@ def python(args: list[str]) -> Plan:
 def exec_command(args: list[str]) -> Plan:
     if not args:
         raise WsError("usage: ./ws exec CMD [ARGS...]")
-    return Plan([], args)
+    return Plan([], args, before=_join)
 
 
 def setup(args: list[str]) -> Plan:
@@ -256,7 +350,7 @@ def execute(todo: Plan) -> int:
     if todo.chdir:
         os.chdir(todo.chdir)
     if todo.before:
-        todo.before()
+        todo.before()  # may change argv (./ws rviz on a run going on)
     if todo.argv is None:
         return 0
     os.execvp(todo.argv[0], todo.argv)

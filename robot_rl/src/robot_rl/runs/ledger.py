@@ -21,6 +21,7 @@ from ..task import Episode, MetricValue, TaskSpec
 from .results import EpisodeRecord, RunDirectory, aggregate
 
 PROGRESS_WINDOW = 50   # episodes the progress line's headline metric is averaged over
+ETA_WINDOW = 10        # the latest episodes whose mean length the ETA assumes for the episodes to come
 SUMMARY_WINDOW = 100   # episodes summary.json's metrics are averaged over
 
 
@@ -133,8 +134,9 @@ class RunLedger:
         now = time.monotonic()
         self._started, self._start_episode, self._start_steps = now, self.state.episode, self.state.env_steps
         self._wall_start, self._next_progress = now - self.state.wall_time, now + self.progress_every_s
-        self.headline: list[MetricValue] = [r.metrics.get(self.task.headline_metric, math.nan)
-                                            for r in self.run.read_episodes()[-PROGRESS_WINDOW:]]
+        recent = self.run.read_episodes()[-PROGRESS_WINDOW:]
+        self.headline: list[MetricValue] = [r.metrics.get(self.task.headline_metric, math.nan) for r in recent]
+        self.recent_lengths = [r.steps for r in recent[-ETA_WINDOW:]]
 
     def episode_done(self, episode: Episode, highest: float, epsilon: float, env_index: int = 0) -> None:
         """Count an ended episode of env `env_index` (`highest`: its highest return so far, `epsilon` its
@@ -142,6 +144,7 @@ class RunLedger:
         state = self.state
         metrics = self.task.metrics(episode)
         self.headline = [*self.headline[-PROGRESS_WINDOW + 1:], metrics[self.task.headline_metric]]
+        self.recent_lengths = [*self.recent_lengths[-ETA_WINDOW + 1:], episode.steps]
         self.episodes_per_env[env_index] += 1
         state.highest_reward = max(state.highest_reward, highest)
         if episode.terminated:
@@ -184,14 +187,31 @@ class RunLedger:
         self._next_progress = now + self.progress_every_s
         self.sync_env_steps()
         state = self.state
-        unit, count, total, start = ("step", state.env_steps, self.max_steps, self._start_steps) if self.max_steps \
-            else ("episode", state.episode, self.nepisodes, self._start_episode)
-        eta = (total - count) * (now - self._started) / (count - start) if count > start else math.nan
+        unit, count, total = ("step", state.env_steps, self.max_steps) if self.max_steps \
+            else ("episode", state.episode, self.nepisodes)
+        eta = self.eta_s(now)
         name, value = next(iter(aggregate({self.task.headline_metric: self.headline}).items()))
         self.log(f"progress: {unit} {count}/{total} ({100.0 * count / total:.0f} %), "
                  f"{state.env_steps / max(now - self._wall_start, 1e-9):.0f} env steps/s, ETA {format_duration(eta)}, "
                  f"{name} over the last {len(self.headline)} episodes: {'n/a' if value is None else f'{value:.3g}'}"
                  f"{self.learner.exploration_label()}")
+
+    def eta_s(self, now: float) -> float:
+        """Seconds left (NaN until known): the env steps left at this run's env step rate. Without a step budget,
+        the steps left are the episodes left times the mean length of the latest ETA_WINDOW episodes: episodes
+        grow as an agent learns, and the early ones' time per episode would promise too soon an end."""
+        steps = self.state.env_steps - self._start_steps
+        if steps <= 0 or now <= self._started:
+            return math.nan
+        rate = steps / (now - self._started)
+        left: float
+        if self.max_steps:
+            left = self.max_steps - self.state.env_steps
+        elif self.recent_lengths:
+            left = (self.nepisodes - self.state.episode) * sum(self.recent_lengths) / len(self.recent_lengths)
+        else:
+            return math.nan
+        return max(left, 0) / rate
 
     @contextmanager
     def saved_on_stop(self, rollback: Callable[[], None] = _no_op) -> Iterator[None]:
@@ -223,7 +243,8 @@ class RunLedger:
         return self.finish(stopped=None if done and stopped is None else stopped or "interrupted")
 
     def finish(self, stopped: str | None = None) -> dict[str, Any]:
-        """summary.json (`stopped` says why a run ended before its last episode), then the trainer's closing lines."""
+        """summary.json (`stopped` says why a run ended before its last episode), then the trainer's closing lines
+        (logged as the "EP:" lines are)."""
         self.sync_env_steps()
         state = self.state
         last = self.run.read_episodes()[-SUMMARY_WINDOW:]
@@ -238,5 +259,5 @@ class RunLedger:
                    "completed": stopped is None, "stopped": stopped}
         self.run.write_summary(summary)
         for line in self.learner.closing_lines(summary, last):
-            self.log(line)
+            self.log_episode(line)  # the tutorial's table row and scores: with the EP: lines
         return summary

@@ -163,6 +163,7 @@ class DeepTrainer(Learner):
         self.task, self.params, self.agent, self.run = task, params, agent, run
         self.on_step, self.should_stop = hooks.on_step, hooks.should_stop
         self.max_steps = max_steps if max_steps is not None else params.nepisodes * params.nsteps  # at most
+        self.step_budget = max_steps or 0  # as given (max_steps:=, 0: none, nepisodes decides): summary.json's
         self.n_envs = self.env.num_envs
         run.checkpoint_name = agent.checkpoint_name
         agent_params.check_action_space(self.env.action_space, f"agent {agent.name} on {task.env_id}")
@@ -260,7 +261,7 @@ class DeepTrainer(Learner):
 
     def summary_fields(self) -> dict[str, Any]:
         return {"agent": self.agent.name, "agent_config": self.agent_config, "envs": self.n_envs,
-                "max_steps": self.max_steps}
+                "max_steps": self.step_budget}
 
     def closing_lines(self, summary: dict[str, Any], last: Sequence[EpisodeRecord]) -> list[str]:
         state, metric = self.state, self.task.headline_metric

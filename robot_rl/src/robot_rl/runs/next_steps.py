@@ -1,0 +1,105 @@
+"""What a training node says around a run: the start line, the end block (the results folder, the headline
+metric, the commands to evaluate, play and train further) and the line of a resume of a run already complete.
+
+The commands are `./ws`'s when the node runs under `./ws run` (which sets $WS_RUN to "./ws run ROBOT"), else
+plain rosrun/roslaunch's; paths are relative to the folder the command ran in (~launch_dir) when under it.
+"""
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+WS_RUN_VARIABLE = "WS_RUN"   # "./ws run ROBOT", set by ./ws run for its nodes
+
+
+@dataclass(frozen=True)
+class RunContext:
+    """Who trains what, where: enough to write the commands that come next."""
+
+    package: str               # the robot's training package (evaluate.py's, main.launch's)
+    task: str                  # task:= (given only when the package has more than one task)
+    several_tasks: bool
+    agent: str                 # agent:= (given unless the default)
+    default_agent: str
+    run_path: Path
+    launch_dir: str = ""       # where the command ran: paths are shown relative to it when under it
+
+    def shown(self, path: Path) -> str:
+        if self.launch_dir:
+            try:
+                return str(path.relative_to(self.launch_dir))
+            except ValueError:
+                pass
+        return str(path)
+
+    def _ws(self) -> str:
+        return os.environ.get(WS_RUN_VARIABLE, "")
+
+    def exec_prefix(self) -> str:
+        return "./ws exec " if self._ws() else ""
+
+    def train_command(self, *args: str) -> str:
+        """The command that trains this run's task with this agent, and `args`."""
+        base = self._ws() or f"roslaunch {self.package} main.launch"
+        words = [base, *([f"task:={self.task}"] if self.several_tasks else []),
+                 *([f"agent:={self.agent}"] if self.agent != self.default_agent else []), *args]
+        return " ".join(words)
+
+    def play_command(self) -> str:
+        """One greedy episode into a video: ./ws demo's (into demos/), or evaluate.py's (into the run folder)."""
+        if self._ws():
+            return f"{self._ws().replace('./ws run', './ws demo', 1)} run:={self.shown(self.run_path)}"
+        return self.evaluate_command("--episodes", "1", "--video", self.shown(self.run_path / "greedy.mp4"))
+
+    def evaluate_command(self, *args: str) -> str:
+        return f"{self.exec_prefix()}rosrun {self.package} evaluate.py --run {self.shown(self.run_path)}" + \
+            "".join(f" {arg}" for arg in args)
+
+
+def start_line(context: RunContext, env_id: str, nepisodes: int, max_steps: int, resumed_from: int | None,
+               quiet: bool) -> str:
+    """The one line a run starts with (it begins "Results go to")."""
+    budget = f"{nepisodes} episodes" + (f" or {max_steps} env steps, whichever comes first" if max_steps else "")
+    what = f"resuming after episode {resumed_from}, up to {budget}" if resumed_from is not None else budget
+    more = "; every episode's EP: line with quiet:=false" if quiet else ""
+    return f"Results go to {context.shown(context.run_path)}: {env_id} with {context.agent}, {what}{more}"
+
+
+def headline(summary: Mapping[str, Any]) -> str:
+    """"success_rate 0.93 over the last 100 episodes" from summary.json's entries."""
+    metric = summary.get("headline_metric", "")
+    metrics = summary.get("metrics_last_100", {}) or {}
+    for key in (f"{metric}_rate", f"mean_{metric}"):
+        if key in metrics:
+            value = metrics[key]
+            shown = "n/a" if value is None or (isinstance(value, float) and math.isnan(value)) else f"{value:.3g}"
+            return f"{key} {shown} over the last {min(int(summary.get('episodes', 0)), 100)} training episodes"
+    return "no headline metric"
+
+
+def end_block(context: RunContext, summary: Mapping[str, Any], video: Path | None) -> list[str]:
+    """The lines a completed run ends with: where, how well, and what to run next."""
+    episodes = int(summary["episodes"])
+    name = context.run_path.name
+    play = context.play_command()
+    lines = [f"Done: {context.shown(context.run_path)}/ ({episodes} episodes; learning_curve.png, summary.json)",
+             f"  {headline(summary)} (exploring; evaluate.py measures the greedy policy)",
+             f"  evaluate it:   {context.evaluate_command()}",
+             f"  play it:       {play}" + (f" (or open {context.shown(video)}: its greedy episode)"
+                                              if video is not None else ""),
+             f"  train further: {context.train_command('resume:=true', f'run:={name}', f'nepisodes:={2 * episodes}')}"]
+    return lines
+
+
+def complete_lines(context: RunContext, summary: Mapping[str, Any]) -> list[str]:
+    """What a resume of a run that is complete says instead of training (nothing is left to train)."""
+    episodes = int(summary["episodes"])
+    name = context.run_path.name
+    return [f"Run {context.shown(context.run_path)} is complete ({episodes} of {summary.get('nepisodes', episodes)} "
+            f"episodes): nothing to resume. To train it further, give more episodes: "
+            f"{context.train_command('resume:=true', f'run:={name}', f'nepisodes:={2 * episodes}')}",
+            f"  evaluate it:   {context.evaluate_command()}"]
