@@ -49,7 +49,8 @@ def test_no_command_prints_the_usage_and_exits_2(capsys):
     (["demo", "fly"], "unknown robot 'fly' (known: cube, hopper)"),
     (["demo", "cube", "policy:=../x"], "no shipped policy '../x' for cube (known: demo)"),
     (["demo", "cube", "a.mp4", "b.mp4"], "usage: ./ws demo [cube|hopper] [policy:=NAME|run:=RUN_FOLDER] [VIDEO.mp4]"),
-    (["demo", "cube", "run:=/nonexistent"], "run:=/nonexistent: no such run folder (a training_results/<task>/<run>/ folder)"),
+    (["demo", "cube", "run:=/nonexistent"],
+     "run:=/nonexistent: no such run folder (a training_results/<task>/<run>/ folder)"),
     (["cluster"], "usage: ./ws cluster start|join ADDRESS|stop|status"),
     (["cluster", "status", "now"], "usage: ./ws cluster status"),
     (["cluster", "join"], "usage: ./ws cluster join ADDRESS (HOST:PORT of the head)"),
@@ -104,8 +105,8 @@ def test_run_starts_the_robot_s_training_launch_quiet_with_its_results_folder(no
     monkeypatch.setenv("ROS_MASTER_URI", "http://127.0.0.1:1")
     assert cli.main(["run", "hopper", "task:=hop"]) == 127  # execvp replaced: it returns
     assert cli.main(["run", "cube", "quiet:=false"]) == 127
-    assert no_exec == [["rosrun", "workspace_tools", "roslaunch_checked.py", "--quiet", "hopper_training", "main.launch",
-                        f"results_dir:={REPO}/training_results", "quiet:=true", "task:=hop"],
+    assert no_exec == [["rosrun", "workspace_tools", "roslaunch_checked.py", "--quiet", "hopper_training",
+                        "main.launch", f"results_dir:={REPO}/training_results", "quiet:=true", "task:=hop"],
                        ["rosrun", "workspace_tools", "roslaunch_checked.py", "moving_cube_training", "main.launch",
                         f"results_dir:={REPO}/training_results", "quiet:=false"]]
     assert os.environ["ROS_MASTER_URI"] == "http://127.0.0.1:1", "the caller's master wins"
