@@ -92,7 +92,9 @@ class CameraConfig:
     x, y at the fixed height `target_height` (the ground stays still in the picture, a hop is seen as one);
     "fixed": at the spawn's x, y and `target_height`. `shadows` casts them from a light in `light_direction`
     (towards the light); `contact_color` (RGBA, empty: none) colours each contact sensor's link while it
-    touches something; `poles` puts height poles in the scene."""
+    touches something; `ground_marks` draws a dark disc on the ground straight under each contact sensor's link
+    (a shadow from right above), so that a frame shows the gap under a foot in the air; `poles` puts height
+    poles in the scene."""
 
     distance: float = 1.5
     yaw: float = 0.0
@@ -104,6 +106,7 @@ class CameraConfig:
     shadows: bool = False
     light_direction: tuple[float, ...] = (0.0, -0.4, 1.0)
     contact_color: tuple[float, ...] = ()
+    ground_marks: bool = False
     poles: PolesConfig = PolesConfig()
 
 
@@ -243,7 +246,8 @@ def parse_camera(camera: Mapping[str, Any], where: str) -> CameraConfig:
         target_height=param(camera, "target_height", float, prefix, default.target_height, minimum=-MAX_POSITION,
                             maximum=MAX_POSITION),
         shadows=param(camera, "shadows", bool, prefix, default.shadows), light_direction=light,
-        contact_color=contact_color, poles=poles_config)
+        contact_color=contact_color, ground_marks=param(camera, "ground_marks", bool, prefix, default.ground_marks),
+        poles=poles_config)
     if config.fov >= 180.0:
         raise ConfigError(f"parameter {prefix}fov must be < 180 degrees, got {config.fov!r}")
     return config

@@ -1,8 +1,8 @@
 """The rendered scene: what a World's frames show, drawn in a PyBullet client of its own.
 
 The scene is a second PyBullet connection (DIRECT) that holds the same URDF and ground plane as the World,
-plus what only the pictures need: height poles (`camera.poles`), shadows, and each contact sensor's link in
-`camera.contact_color` while it touches something. It is never stepped: before each frame it takes the
+plus what only the pictures need: height poles (`camera.poles`), shadows, each contact sensor's link in
+`camera.contact_color` while it touches something, and a disc on the ground under it (`camera.ground_marks`). It is never stepped: before each frame it takes the
 robot's base pose and joint positions from the World, so rendering changes nothing in the World's physics
 client (no body added, no colour changed, no saved state touched) and costs nothing until the first frame.
 The camera's aim (`camera_target`) follows the base, its x and y only, or stays fixed (`camera.follow`).
@@ -26,6 +26,8 @@ MAX_IMAGE_SIZE = 4096  # pixels per side of a rendered image
 POLE_WIDTH = 0.03  # m, the light pole's side; its dark bands are a little wider, so that they show on it
 POLE_LIGHT = (0.95, 0.95, 0.9, 1.0)
 POLE_DARK = (0.1, 0.1, 0.1, 1.0)
+MARK_RADIUS = 0.03  # m, a ground mark's disc
+MARK_COLOUR = (0.25, 0.25, 0.3, 1.0)
 
 
 def check_image_size(width: int, height: int) -> None:
@@ -77,6 +79,12 @@ class Scene:
         self._own_colours = {link: colours[link] for link in contact_links if link in colours}
         self._marked: set[int] = set()
         self._add_poles()
+        self._marks: dict[int, int] = {}  # contact sensor link -> its ground mark's body
+        if self.config.camera.ground_marks:
+            disc = p.createVisualShape(p.GEOM_CYLINDER, radius=MARK_RADIUS, length=0.002, rgbaColor=MARK_COLOUR,
+                                       physicsClientId=cid)
+            self._marks = {link: p.createMultiBody(0, -1, disc, (0.0, 0.0, 0.001), physicsClientId=cid)
+                           for link in sorted(contact_links)}
 
     def _add_poles(self) -> None:
         poles, cid = self.config.camera.poles, self._cid
@@ -103,6 +111,9 @@ class Scene:
         p.resetBasePositionAndOrientation(body, base_pose[0], base_pose[1], physicsClientId=cid)
         for index, position in joint_positions:
             p.resetJointState(body, index, position, physicsClientId=cid)
+        for link, mark in self._marks.items():
+            x, y, _ = p.getLinkState(body, link, computeForwardKinematics=True, physicsClientId=cid)[4]
+            p.resetBasePositionAndOrientation(mark, (x, y, 0.001), (0.0, 0.0, 0.0, 1.0), physicsClientId=cid)
         if camera.contact_color:
             marked = {link for link in touching if link in self._own_colours}
             for link in marked ^ self._marked:
