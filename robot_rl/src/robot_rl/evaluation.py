@@ -241,7 +241,8 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
             parser.error(f"--video-episodes must be from 1 to --episodes ({args.episodes}), got {args.video_episodes}")
         if not 1.0 <= args.slow_motion <= 100.0:  # NaN too
             parser.error(f"--slow-motion must be from 1 (real time) to 100, got {args.slow_motion}")
-        video = VideoRequest(args.video, args.video_episodes, *args.video_size, slow_motion=args.slow_motion)
+        width, height = args.video_size
+        video = VideoRequest(args.video, args.video_episodes, width, height, args.slow_motion)
     if (args.action is None) == (args.policy == "constant"):
         parser.error("--action N is needed for --policy constant, and only for it")
     if args.policy != "greedy":
