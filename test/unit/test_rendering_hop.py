@@ -1,6 +1,7 @@
 """The monoped's hop can be seen in its frames (direct backend, no ROS): its camera (hopper_sim.yaml) follows the
 base's x and y only, so a flight lifts the foot off the ground in the picture, the foot is marked green while it
-touches the ground, a dark disc on the ground under it shows the gap, and the scene's height poles are drawn. The scene is pybullet_sim.scene."""
+touches the ground, a dark disc on the ground under it shows the gap, and the scene's height poles are drawn.
+The scene is pybullet_sim.scene."""
 import math
 
 import numpy as np

@@ -2,7 +2,8 @@
 
 The scene is a second PyBullet connection (DIRECT) that holds the same URDF and ground plane as the World,
 plus what only the pictures need: height poles (`camera.poles`), shadows, each contact sensor's link in
-`camera.contact_color` while it touches something, and a disc on the ground under it (`camera.ground_marks`). It is never stepped: before each frame it takes the
+`camera.contact_color` while it touches something, and a disc on the ground under it
+(`camera.ground_marks`). It is never stepped: before each frame it takes the
 robot's base pose and joint positions from the World, so rendering changes nothing in the World's physics
 client (no body added, no colour changed, no saved state touched) and costs nothing until the first frame.
 The camera's aim (`camera_target`) follows the base, its x and y only, or stays fixed (`camera.follow`).
