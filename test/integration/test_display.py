@@ -96,3 +96,74 @@ def test_human_mode_shows_pybullets_window_in_real_time(xvfb, tmp_path):
     assert report["wall_s"] >= report["sim_s"], "human mode must not run faster than real time"
     assert report["replayed"] == [False] * 3, "a World with PyBullet's window must never replay a start"
     assert report["red"] > 1000 and report["dark"] > 1000, f"the window should show the cube ({report}, {screenshot})"
+
+
+HOP_SIM_SECONDS = 5.0  # of sim time under the controller: the monoped alone falls in less (docs/guide/hopping.md)
+HOP_TIMEOUT = 240.0    # wall s: rviz on llvmpipe beside the sim at real_time_factor 0.25 (20 s of wall time idle)
+# Waits until /odom reaches `seconds` of sim time, then prints the base's lowest and highest height after 1 s.
+ODOMETRY_WATCH = """
+import json, sys, time
+import rospy
+from nav_msgs.msg import Odometry
+seconds, timeout = float(sys.argv[1]), float(sys.argv[2])
+rospy.init_node("odometry_watch")
+heights, stamps = [], []
+def on_odometry(msg):
+    if msg.header.stamp.to_sec() > 1.0:
+        heights.append(msg.pose.pose.position.z)
+    stamps.append(msg.header.stamp.to_sec())
+rospy.Subscriber("/odom", Odometry, on_odometry, queue_size=100)
+deadline = time.monotonic() + timeout
+while not (stamps and stamps[-1] >= seconds):
+    if time.monotonic() > deadline:
+        sys.exit(f"/odom reached {stamps[-1] if stamps else 'no'} s of sim time in {timeout} s, not {seconds}")
+    time.sleep(0.1)
+print(json.dumps({"lowest": min(heights), "highest": max(heights)}))
+"""
+
+
+def test_ws_rviz_hopper_shows_the_monoped_hopping_with_no_repeated_tf(ros_master, xvfb, tmp_path):
+    """./ws rviz hopper's launch (tested in test_cli.py): the sim with hop_controller, rviz and
+    robot_state_publisher. The base stays up hopping, rviz shows the monoped, no node logs an error and tf's
+    listeners never see one transform twice at one stamp (TF_REPEATED_DATA)."""
+    ros_master.env["DISPLAY"] = xvfb
+    log = tmp_path / "roslaunch.log"
+    with open(log, "w") as out:
+        launch = ros_master.start(["roslaunch", "hopper_training", "hop_controller.launch",
+                                   *launch_args(rviz="true", paused="false")], stdout=out, stderr=subprocess.STDOUT)
+    watch = ros_master.run([sys.executable, "-c", ODOMETRY_WATCH, str(HOP_SIM_SECONDS), str(HOP_TIMEOUT)],
+                           timeout=HOP_TIMEOUT + 30.0)
+    assert watch.returncode == 0, watch.stderr[-2000:] + log.read_text()[-3000:]
+    heights = json.loads(watch.stdout.strip().splitlines()[-1])
+    assert heights["lowest"] > 0.7, f"the monoped fell (base down to {heights['lowest']:.2f} m)"
+    assert heights["highest"] - heights["lowest"] > 0.05, f"the base did not go up and down: {heights}"
+    screenshot = tmp_path / "rviz_monoped_hopping.png"
+    image = np.asarray(ImageGrab.grab(xdisplay=xvfb))
+    ImageGrab.Image.fromarray(image).save(screenshot)
+    counts = colour_counts(image)
+    assert counts["red"] > 800 and counts["blue"] > 200, f"rviz should show the monoped ({counts}, {screenshot})"
+    output = log.read_text()
+    assert launch.poll() is None and "has died" not in output, output[-3000:]
+    assert "TF_REPEATED_DATA" not in output, output[-3000:]
+    errors = [line for line in output.splitlines() if re.search(r"error|fatal", line, re.I)]
+    assert errors == [], f"rviz or a node logged errors (screenshot {screenshot}):\n" + "\n".join(errors)
+
+
+def test_training_with_rviz_sends_no_transform_twice_at_one_stamp(ros_master, xvfb, tmp_path):
+    """Every episode's reset publishes at the time of the step before it (reset_world keeps time): the sim
+    must not broadcast the base's transform again then, or rviz warns TF_REPEATED_DATA once per episode."""
+    ros_master.env["DISPLAY"] = xvfb
+    log = tmp_path / "roslaunch.log"
+    with open(log, "w") as out:
+        training = ros_master.start(["roslaunch", "hopper_training", "main.launch",
+                                     *launch_args(rviz="true", nepisodes=20, video="false",
+                                                  results_dir=str(tmp_path / "results"))],
+                                    stdout=out, stderr=subprocess.STDOUT)
+        try:
+            assert training.wait(timeout=HOP_TIMEOUT) == 0, log.read_text()[-3000:]
+        except subprocess.TimeoutExpired:
+            raise AssertionError(f"20 episodes with rviz did not end in {HOP_TIMEOUT} s: see {log}") from None
+    output = log.read_text()
+    assert output.count("EP: ") == 20, output[-3000:]
+    repeated = [line for line in output.splitlines() if "TF_REPEATED_DATA" in line]
+    assert repeated == [], f"{len(repeated)} repeated transforms, the first: {repeated[0]}"

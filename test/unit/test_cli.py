@@ -73,6 +73,13 @@ def test_rviz_needs_a_display(monkeypatch):
     assert cli.plan(["run", "hopper", "rviz:=1"]).needs == ["apt rviz"]
 
 
+def test_rviz_shows_the_cube_sim_and_the_monoped_hopping_under_its_controller(monkeypatch):
+    monkeypatch.setenv("DISPLAY", ":1")
+    assert cli.plan(["rviz"]).argv == ["roslaunch", "pybullet_sim", "cube_sim.launch", "rviz:=true", "paused:=false"]
+    assert cli.plan(["rviz", "hopper", "seed:=2"]).argv == [  # alone, the monoped falls within a minute
+        "roslaunch", "hopper_training", "hop_controller.launch", "rviz:=true", "paused:=false", "seed:=2"]
+
+
 @pytest.mark.parametrize("argv, needs", [
     (["run"], []),  # its master: 11311, or a free port if taken (chosen when it runs)
     (["run", "agent:=qlearn", "agent:=sac", "cluster:=ray"],

@@ -203,3 +203,22 @@ def test_an_env_whose_steps_run_many_periods_is_recorded_by_its_periods(tmp_path
     every = frame_every(1000.0)
     assert recorder.fps == pytest.approx(1000.0 / every) and recorder.fps <= 30.0
     assert recorder.frames == 1 + 300 // every, "frames in real time within the steps, not one per step"
+
+
+def test_a_slow_motion_video_takes_k_times_the_frames_and_plays_k_times_longer(tmp_path):
+    env = PeriodsPerStep(periods=100)
+    recorder = VideoRecorder(env, tmp_path / "slow.mp4", slow_motion=4)
+    recorder.reset()
+    for _ in range(3):
+        recorder.step(0)
+    recorder.close()
+    every = frame_every(1000.0 / 4)
+    assert every == 9 and recorder.fps == pytest.approx(1000.0 / 9 / 4) and recorder.fps <= 30.0
+    assert recorder.frames == 1 + 300 // every
+    seconds = recorder.frames / recorder.fps  # of video, for 0.3 s of sim time
+    assert seconds == pytest.approx(4 * (recorder.frames * every / 1000.0))
+    with imageio.get_reader(tmp_path / "slow.mp4", format="FFMPEG") as reader:
+        assert reader.get_meta_data()["fps"] == pytest.approx(recorder.fps, rel=1e-3)
+    for bad in (0.5, float("nan"), 1000.0):
+        with pytest.raises(ValueError, match="slow_motion must be a number from 1"):
+            VideoRecorder(PeriodsPerStep(periods=1), tmp_path / "bad.mp4", slow_motion=bad)

@@ -6,7 +6,8 @@ here is robot specific: robots differ only by URDF and this YAML.
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -18,11 +19,12 @@ from .validation import (
     MAX_NOISE,
     MAX_POSITION,
     MAX_RATE,
+    MAX_SCENE_SIZE,
     MAX_SPAWN_ANGLE,
     param,
 )
 
-__all__ = ["RobotConfig", "parse_robot_config"]
+__all__ = ["CameraConfig", "PolesConfig", "RobotConfig", "parse_camera", "parse_robot_config"]
 
 JOINT_STATE_CONTROLLER = "joint_state_controller/JointStateController"
 VELOCITY_CONTROLLER = "effort_controllers/JointVelocityController"
@@ -66,17 +68,46 @@ class SensorConfig:
     gaussian_noise: float = 0.0
 
 
+CAMERA_FOLLOWS = ("base", "horizontal", "fixed")
+
+
+@dataclass(frozen=True)
+class PolesConfig:
+    """Height poles in the rendered scene (no physics): at each x of `xs`, at `y`, a pole `height` m tall in
+    bands of `band` m, alternately dark and light, so that a frame shows heights."""
+
+    xs: tuple[float, ...] = ()
+    y: float = 0.0
+    height: float = 1.0
+    band: float = 0.1
+
+
 @dataclass(frozen=True)
 class CameraConfig:
-    """The rendering camera: it follows the robot's base link, looking at it (raised by `z_offset` m) from
-    `distance` m; `yaw` in degrees about world z (0: from -y looking along +y, 90: from +x looking along
-    -x), `pitch` in degrees (negative: from above)."""
+    """The rendering camera and what the rendered scene shows beside the robot.
+
+    The camera looks from `distance` m at an aim point; `yaw` in degrees about world z (0: from -y looking along
+    +y, 90: from +x looking along -x), `pitch` in degrees (negative: from above). `follow` says where the aim is:
+    "base": at the robot's base, raised by `z_offset` m (it moves with every hop); "horizontal": above the base's
+    x, y at the fixed height `target_height` (the ground stays still in the picture, a hop is seen as one);
+    "fixed": at the spawn's x, y and `target_height`. `shadows` casts them from a light in `light_direction`
+    (towards the light); `contact_color` (RGBA, empty: none) colours each contact sensor's link while it
+    touches something; `ground_marks` draws a dark disc on the ground straight under each contact sensor's link
+    (a shadow from right above), so that a frame shows the gap under a foot in the air; `poles` puts height
+    poles in the scene."""
 
     distance: float = 1.5
     yaw: float = 0.0
     pitch: float = -20.0
     z_offset: float = 0.0
     fov: float = 60.0  # vertical field of view, degrees
+    follow: str = "base"  # one of CAMERA_FOLLOWS
+    target_height: float = 0.5  # m above the ground: the aim's height unless follow is "base"
+    shadows: bool = False
+    light_direction: tuple[float, ...] = (0.0, -0.4, 1.0)
+    contact_color: tuple[float, ...] = ()
+    ground_marks: bool = False
+    poles: PolesConfig = PolesConfig()
 
 
 @dataclass(frozen=True)
@@ -160,26 +191,64 @@ def parse_robot_config(params: Mapping[str, Any], where: str = "~") -> RobotConf
             update_rate=param(entry, "update_rate", float, s_where + "/", minimum=0.0, exclusive_minimum=True,
                               maximum=MAX_RATE),
             gaussian_noise=param(entry, "gaussian_noise", float, s_where + "/", 0.0, minimum=0.0, maximum=MAX_NOISE)))
-    camera = param(params, "camera", dict, top, {})
-    c_where, default = f"{where}/camera", CameraConfig()
-    known = [f.name for f in fields(CameraConfig)]
-    unknown = sorted(set(camera) - set(known))
-    if unknown:
-        raise ConfigError(f"parameter {c_where} has unknown keys {unknown} (known: {', '.join(known)})")
-    camera_config = CameraConfig(
-        distance=param(camera, "distance", float, c_where + "/", default.distance, minimum=0.0,
-                       exclusive_minimum=True, maximum=MAX_POSITION),
-        yaw=param(camera, "yaw", float, c_where + "/", default.yaw, minimum=-MAX_CAMERA_ANGLE,
-                  maximum=MAX_CAMERA_ANGLE),
-        pitch=param(camera, "pitch", float, c_where + "/", default.pitch, minimum=-MAX_CAMERA_ANGLE,
-                    maximum=MAX_CAMERA_ANGLE),
-        z_offset=param(camera, "z_offset", float, c_where + "/", default.z_offset, minimum=-MAX_POSITION,
-                       maximum=MAX_POSITION),
-        fov=param(camera, "fov", float, c_where + "/", default.fov, minimum=0.0, exclusive_minimum=True))
-    if camera_config.fov >= 180.0:
-        raise ConfigError(f"parameter {c_where}/fov must be < 180 degrees, got {camera_config.fov!r}")
+    camera_config = parse_camera(param(params, "camera", dict, top, {}), f"{where}/camera")
     base_constraint = param(params, "base_constraint", str, top, "none", choices=BASE_CONSTRAINTS)
     return RobotConfig(robot_namespace=namespace, spawn_xyz=xyz, spawn_rpy=rpy, joint_state_rate=joint_state_rate,
                        controllers=tuple(controllers), sensors=tuple(sensors),
                        joint_state_controller=joint_state_controller, camera=camera_config,
                        base_constraint=base_constraint)
+
+
+def _floats(value: Any, name: str, count: int | None = None, bound: float = MAX_POSITION) -> tuple[float, ...]:
+    """A list of finite numbers within +-bound (`count` of them when given), or a ConfigError naming it."""
+    if (not isinstance(value, (list, tuple)) or (count is not None and len(value) != count)
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and abs(v) <= bound
+                       for v in value)):
+        size = f"{count} " if count is not None else ""
+        raise ConfigError(f"parameter {name} must be a list of {size}finite numbers within +-{bound:g}, got {value!r}")
+    return tuple(float(v) for v in value)
+
+
+def _known_keys(section: Mapping[str, Any], known: Sequence[str], where: str) -> None:
+    unknown = sorted(set(section) - set(known))
+    if unknown:
+        raise ConfigError(f"parameter {where} has unknown keys {unknown} (known: {', '.join(known)})")
+
+
+def parse_camera(camera: Mapping[str, Any], where: str) -> CameraConfig:
+    """The `camera:` section of a robot's sim config (`where` names it in errors)."""
+    default, prefix = CameraConfig(), where + "/"
+    _known_keys(camera, [f.name for f in fields(CameraConfig)], where)
+    poles = param(camera, "poles", dict, prefix, {})
+    _known_keys(poles, [f.name for f in fields(PolesConfig)], prefix + "poles")
+    p_prefix, no_poles = prefix + "poles/", PolesConfig()
+    poles_config = PolesConfig(
+        xs=_floats(poles.get("xs", []), p_prefix + "xs"),
+        y=param(poles, "y", float, p_prefix, no_poles.y, minimum=-MAX_POSITION, maximum=MAX_POSITION),
+        height=param(poles, "height", float, p_prefix, no_poles.height, minimum=0.0, exclusive_minimum=True,
+                     maximum=MAX_SCENE_SIZE),
+        band=param(poles, "band", float, p_prefix, no_poles.band, minimum=0.01, maximum=MAX_SCENE_SIZE))
+    contact_color = _floats(camera.get("contact_color", []), prefix + "contact_color", bound=1.0)
+    if contact_color and (len(contact_color) != 4 or min(contact_color) < 0.0):
+        raise ConfigError(f"parameter {prefix}contact_color must be [] or RGBA, four numbers from 0 to 1, got "
+                          f"{camera['contact_color']!r}")
+    light = _floats(camera.get("light_direction", list(default.light_direction)), prefix + "light_direction", 3)
+    if not any(light):
+        raise ConfigError(f"parameter {prefix}light_direction must not be all zeros")
+    config = CameraConfig(
+        distance=param(camera, "distance", float, prefix, default.distance, minimum=0.0,
+                       exclusive_minimum=True, maximum=MAX_POSITION),
+        yaw=param(camera, "yaw", float, prefix, default.yaw, minimum=-MAX_CAMERA_ANGLE, maximum=MAX_CAMERA_ANGLE),
+        pitch=param(camera, "pitch", float, prefix, default.pitch, minimum=-MAX_CAMERA_ANGLE, maximum=MAX_CAMERA_ANGLE),
+        z_offset=param(camera, "z_offset", float, prefix, default.z_offset, minimum=-MAX_POSITION,
+                       maximum=MAX_POSITION),
+        fov=param(camera, "fov", float, prefix, default.fov, minimum=0.0, exclusive_minimum=True),
+        follow=param(camera, "follow", str, prefix, default.follow, choices=CAMERA_FOLLOWS),
+        target_height=param(camera, "target_height", float, prefix, default.target_height, minimum=-MAX_POSITION,
+                            maximum=MAX_POSITION),
+        shadows=param(camera, "shadows", bool, prefix, default.shadows), light_direction=light,
+        contact_color=contact_color, ground_marks=param(camera, "ground_marks", bool, prefix, default.ground_marks),
+        poles=poles_config)
+    if config.fov >= 180.0:
+        raise ConfigError(f"parameter {prefix}fov must be < 180 degrees, got {config.fov!r}")
+    return config

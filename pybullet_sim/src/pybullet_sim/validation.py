@@ -30,6 +30,7 @@ MAX_SPAWN_ANGLE = 2 * math.pi  # rad: the spawn's roll, pitch, yaw within a turn
 MAX_GAIN = 1.0e6  # a PID gain p, i or d, either sign: 1e5 x the configs' largest (10); effort is clamped anyway
 MAX_RATE = 1.0e6  # Hz of sim time: a publish_rate or update_rate above one per shortest physics step (1e-6 s)
 MAX_CAMERA_ANGLE = 360.0  # degrees: the camera's yaw and pitch within a turn either way
+MAX_SCENE_SIZE = 100.0  # m: a height pole or a band of one in the rendered scene
 MAX_NOISE = 1.0  # a sensor's gaussian_noise (std dev in m, rad, m/s, rad/s, m/s^2): beyond it a reading hides the state
 _WHAT = {float: "float (a finite number)", int: "int", bool: "bool", str: "a non-empty string", dict: "a dictionary"}
 

@@ -44,6 +44,7 @@ from .errors import ConfigError, UrdfError
 from .measurements import Measurements
 from .pid import EffortPid
 from .readings import FrameState, JointStateReading
+from .scene import Scene, camera_target, check_image_size
 from .sensors import SENSOR_KINDS
 from .starts import MAX_REMEMBERED_STARTS, Change, StartKey, StartMemory
 from .transforms import cross, normalized, quaternion_multiply, rotate, transpose_rotate
@@ -53,7 +54,6 @@ from .validation import frame_state_problem
 __all__ = ["DEFAULT_GRAVITY", "MAX_REMEMBERED_STARTS", "SolverSettings", "World"]
 
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
-MAX_IMAGE_SIZE = 4096  # pixels per side of a rendered image
 MIN_TIME_STEP = 1e-6  # s; sim time counts whole nanoseconds
 
 # Bullet adds the velocity-product terms (gyroscopic torque w x Iw, Coriolis) explicitly once per step, so a
@@ -117,6 +117,8 @@ class World(Measurements):
                 raise ConfigError(f"controller {controller.name!r} names joint {controller.joint!r}, which "
                                   f"{urdf_source} does not have (joints: {', '.join(sorted(urdf_joints)) or 'none'})")
         self.config = config
+        self._urdf_text = urdf_text
+        self._scene: Scene | None = None  # made by the first render()
         self.time_step = time_step
         self.seed = seed
         self.step_count = 0  # physics steps since the start or the last reset_simulation
@@ -439,6 +441,9 @@ class World(Measurements):
         self._rng = np.random.default_rng(self.seed)
 
     def close(self) -> None:
+        if self._scene is not None:
+            self._scene.close()
+            self._scene = None
         if self._cid >= 0:
             p.disconnect(self._cid)
             self._cid = -1
@@ -455,26 +460,26 @@ class World(Measurements):
         """The reading of one configured sensor (odometry, IMU or contact)."""
         return SENSOR_KINDS[sensor.type].read(self, sensor)
 
-    # -- rendering ------------------------------------------------------------------------------
-    def _camera_target(self) -> tuple[float, float, float]:
-        x, y, z = p.getBasePositionAndOrientation(self._body, physicsClientId=self._cid)[0]
-        return (x, y, z + self.config.camera.z_offset)
-
+    # -- rendering (the scene it is drawn in: pybullet_sim.scene) ---------------------------------
     def render(self, width: int, height: int) -> np.ndarray:
-        """An RGB image (height x width x 3, uint8) from the camera that follows the robot's base
-        (config.camera), drawn by PyBullet's TinyRenderer, which needs no display. Changes nothing."""
-        if not all(isinstance(v, int) and 1 <= v <= MAX_IMAGE_SIZE for v in (width, height)):
-            raise ValueError(f"image size must be whole pixels from 1 to {MAX_IMAGE_SIZE} a side, got {width!r} x "
-                             f"{height!r}")
-        camera, cid = self.config.camera, self._cid
-        view = p.computeViewMatrixFromYawPitchRoll(self._camera_target(), camera.distance, camera.yaw, camera.pitch,
-                                                   0.0, 2, physicsClientId=cid)
-        projection = p.computeProjectionMatrixFOV(camera.fov, width / height, 0.01, 100.0, physicsClientId=cid)
-        rgba = p.getCameraImage(width, height, view, projection, renderer=p.ER_TINY_RENDERER, physicsClientId=cid)[2]
-        return np.ascontiguousarray(np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3])
+        """An RGB image (height x width x 3, uint8) from the camera of config.camera (following the base, its
+        x and y, or fixed), with the scene's shadows, height poles and contact colours; drawn in a PyBullet
+        client of its own (pybullet_sim.scene), so that it changes nothing here."""
+        check_image_size(width, height)
+        cid, body = self._cid, self._body
+        contact_links = {self._link_index[s.link] for s in self.config.sensors if s.type == "contact"}
+        if self._scene is None:
+            self._scene = Scene(self._urdf_text, self.config, contact_links)
+        touching = {link for link in contact_links
+                    if p.getContactPoints(bodyA=body, linkIndexA=link, physicsClientId=cid)}
+        states = p.getJointStates(body, self._movable, physicsClientId=cid)
+        return self._scene.render(width, height, p.getBasePositionAndOrientation(body, physicsClientId=cid),
+                                  [(index, state[0]) for index, state in zip(self._movable, states, strict=True)],
+                                  touching)
 
     def aim_gui_camera(self) -> None:
-        """Point the GUI window's camera (World(gui=True)) at the robot as render() does."""
+        """Point the GUI window's camera (World(gui=True)) where render()'s camera looks."""
         camera = self.config.camera
-        p.resetDebugVisualizerCamera(camera.distance, camera.yaw, camera.pitch, self._camera_target(),
-                                     physicsClientId=self._cid)
+        base = p.getBasePositionAndOrientation(self._body, physicsClientId=self._cid)[0]
+        p.resetDebugVisualizerCamera(camera.distance, camera.yaw, camera.pitch,
+                                     camera_target(camera, base, self.config.spawn_xyz), physicsClientId=self._cid)

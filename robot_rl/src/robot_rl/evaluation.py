@@ -1,7 +1,7 @@
 """Evaluate a trained run: its greedy policy, then a uniformly random one, on the run's own task.
 
   evaluate.py --qtable RUN [--episodes N] [--horizon-s S] [--backend direct|ros] [--seed S]
-              [--initial-tilt LOW HIGH] [--video PATH.mp4 [--video-episodes N] [--video-size WxH]]
+              [--initial-tilt LOW HIGH] [--video PATH.mp4 [--video-episodes N] [--video-size WxH] [--slow-motion K]]
   evaluate.py --policy NAME [--task TASK] [--speed M_S] [the options above but --qtable and --video]
   evaluate.py --policy constant --action N [--task TASK] [the same options]
 
@@ -23,8 +23,9 @@ params as that policy needs them; its JSON has "policy": NAME and NAME: {...} wi
 `--policy constant --action N`, on every robot, takes action N every step (a task with Discrete actions):
 the trivial baselines a learned policy must beat besides random ones; its JSON adds "action": N.
 `--video` records the first `--video-episodes` (3) greedy episodes to an mp4 (robot_rl.runs.video: real
-time, at most 30 frames/s, from the sim's camera that follows the robot) and adds "video": {"path",
-"episodes", "frames", "fps"} to the JSON; recording changes none of the numbers.
+time, or `--slow-motion K` times slower, at most 30 frames/s, from the robot's camera of its sim config) and
+adds "video": {"path", "episodes", "frames", "fps", "slow_motion"} to the JSON; recording changes none of the
+numbers.
 The direct backend (default) needs nothing running; `--backend ros` needs the task's sim node.
 A lost sim, or a sim state that is no longer finite, ends it with one line and exit code 1 (either backend).
 Every robot package's evaluate.py is this, for its own tasks.
@@ -95,6 +96,7 @@ class VideoRequest:
     episodes: int = 3
     width: int = 320
     height: int = 240
+    slow_motion: float = 1.0  # the video plays this many times slower than real time
 
 
 def run_episodes(env: Any, policy: Callable[[np.ndarray], Any], episodes: int, task: TaskSpec[Any],
@@ -144,7 +146,8 @@ def evaluate(run: TrainedRun, episodes: int, horizon_s: float, backend: str, see
     rendering = {} if video is None else {"render_mode": "rgb_array", "render_width": video.width,
                                           "render_height": video.height}
     env = make_env(run.task, params=params, backend=backend, seed=seed, max_episode_steps=steps, **rendering)
-    recorder = None if video is None else VideoRecorder(env, video.path, video.episodes)
+    recorder = None if video is None else VideoRecorder(env, video.path, video.episodes,
+                                                      slow_motion=video.slow_motion)
     rng = np.random.default_rng(seed)
     try:
         policy = run.policy(env, seed)
@@ -160,7 +163,7 @@ def evaluate(run: TrainedRun, episodes: int, horizon_s: float, backend: str, see
               "random": random_policy}
     if recorder is not None:
         report["video"] = {"path": str(recorder.path), "episodes": recorder.episodes_recorded,
-                           "frames": recorder.frames, "fps": recorder.fps}
+                           "frames": recorder.frames, "fps": recorder.fps, "slow_motion": recorder.slow_motion}
     return report
 
 
@@ -219,6 +222,8 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
     parser.add_argument("--video", type=Path, help="record the first greedy episodes to this .mp4 file")
     parser.add_argument("--video-episodes", type=int, default=3, help="greedy episodes in the video (default 3)")
     parser.add_argument("--video-size", type=video_size, default=(320, 240), help="frame size WxH (default 320x240)")
+    parser.add_argument("--slow-motion", type=float, default=1.0, metavar="K",
+                        help="the video plays K times slower than real time, K from 1 (default) to 100")
     args = parser.parse_args(argv)
     if (args.run is None) == (args.policy == "greedy"):
         parser.error("--qtable RUN is needed for the greedy policy, and only for it")
@@ -234,7 +239,10 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
             parser.error(f"--video: the folder {str(args.video.parent)!r} does not exist")
         if not 1 <= args.video_episodes <= args.episodes:
             parser.error(f"--video-episodes must be from 1 to --episodes ({args.episodes}), got {args.video_episodes}")
-        video = VideoRequest(args.video, args.video_episodes, *args.video_size)
+        if not 1.0 <= args.slow_motion <= 100.0:  # NaN too
+            parser.error(f"--slow-motion must be from 1 (real time) to 100, got {args.slow_motion}")
+        width, height = args.video_size
+        video = VideoRequest(args.video, args.video_episodes, width, height, args.slow_motion)
     if (args.action is None) == (args.policy == "constant"):
         parser.error("--action N is needed for --policy constant, and only for it")
     if args.policy != "greedy":

@@ -34,7 +34,8 @@ does only what is missing, so a second run starts in seconds.
                               rviz:=true also installs rviz (Debian's) and shows the robot in it;
                               agent:=NAME of a deep agent (robot_rl.agents) also installs requirements-deep.txt;
                               cluster:=ray|ADDRESS (env workers as Ray actors) also installs requirements-distributed.txt
-  ./ws rviz [cube|hopper] [NAME:=VALUE ...] set up with rviz, then the robot's sim running, seen in rviz
+  ./ws rviz [cube|hopper] [NAME:=VALUE ...] set up with rviz, then the robot moving in its sim, seen in rviz
+                              (the monoped hopping under hop_controller, at real_time_factor 0.25)
   ./ws plot [NAMESPACE] [--output PNG]      a live plot of the reward topics (rqt_plot is not in Debian 12)
   ./ws test [PYTEST ARGS]     set up, then the linters and every test (pytest + rostest)
   ./ws test --quick [PYTEST ARGS]  pytest alone: no linters, no display packages, the deep agents' only if the tests use them
@@ -173,7 +174,7 @@ def rviz(args: list[str]) -> Plan:
     name = args.pop(0) if args and ":=" not in args[0] else DEFAULT_ROBOT
     robot = ROBOTS[_robot(name)]
     _display("rviz")
-    todo = Plan(_apt(RVIZ_APT), ["roslaunch", *robot.sim, "rviz:=true", "paused:=false", *args])
+    todo = Plan(_apt(RVIZ_APT), ["roslaunch", *robot.show, "rviz:=true", "paused:=false", *args])
 
     def join() -> None:  # a run going on: rviz on its sim, not a second sim on its master
         joined = _join_run()

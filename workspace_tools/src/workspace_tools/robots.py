@@ -20,6 +20,13 @@ class Robot:
     task_arg: bool          # whether main.launch takes task:= (the cube's sets its one task itself)
     main_launch: str = "main.launch"  # the training's top-level launch file, in `package`
     sim_package: str = "pybullet_sim"
+    show_launch: tuple[str, str] | None = None  # (package, launch file) that ./ws rviz runs: the sim with what
+                                                # keeps the robot moving (None: the sim alone)
+
+    @property
+    def show(self) -> tuple[str, str]:
+        """(package, launch file) that ./ws rviz launches with rviz:=true paused:=false."""
+        return self.show_launch or self.sim
 
     @property
     def training_launch(self) -> tuple[str, str]:
@@ -34,7 +41,9 @@ class Robot:
 
 ROBOTS = {
     "cube": Robot("cube", "moving_cube_training", "moving_cube", "cube_sim.launch", "one_disk_walk", task_arg=False),
-    "hopper": Robot("hopper", "hopper_training", "monoped", "hopper_sim.launch", "stay_up", task_arg=True),
+    # the monoped falls within a minute alone: ./ws rviz shows it hopping under its controller (docs/guide/hopping.md)
+    "hopper": Robot("hopper", "hopper_training", "monoped", "hopper_sim.launch", "stay_up", task_arg=True,
+                    show_launch=("hopper_training", "hop_controller.launch")),
 }
 DEFAULT_ROBOT = "cube"    # ./ws run, rviz and sweep without a robot
 DEMO_ROBOT = "hopper"     # ./ws demo without a robot

@@ -129,6 +129,9 @@ class SimNode:
         self._sensor_pubs = [(sensor, synchronous_publisher(sensor.topic, side.type), side.to_message)
                              for sensor, side in zip(self.config.sensors, sides)]
         self._tf = tf2_ros.TransformBroadcaster()
+        # A sensor's last /tf stamp: a reset (or a set_model_state) publishes at the time of the step before it,
+        # and tf's listeners (rviz) warn TF_REPEATED_DATA on a second transform at one stamp; it is not resent.
+        self._tf_stamps: dict[str, rospy.Time] = {}
         self._last_clock_wall = -math.inf
         self._pace_origin = None  # (wall, sim) at which the free-running loop's pacing restarted
         self._make_schedules()
@@ -226,7 +229,9 @@ class SimNode:
         if message_wanted or publisher.get_num_connections():
             msg = to_msg(reading, stamp)
             publisher.publish(msg)
-        if SENSOR_KINDS[sensor.type].broadcasts_pose and self._tf.pub_tf.get_num_connections():
+        if (SENSOR_KINDS[sensor.type].broadcasts_pose and self._tf.pub_tf.get_num_connections()
+                and self._tf_stamps.get(sensor.name) != stamp):
+            self._tf_stamps[sensor.name] = stamp
             position, orientation = self.world.link_pose(sensor.link)
             self._tf.sendTransform(transform_msg(sensor.frame_id, sensor.link, position, orientation, stamp))
         return reading, msg

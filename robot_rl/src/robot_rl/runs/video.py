@@ -7,8 +7,10 @@ keep render_fps / frame_every at most MAX_FPS. The cube (a step of 0.06 s of sim
 at 16.7 frames/s; the monoped (20 ms steps, render_fps 50) every 2nd step at 25 frames/s. An
 episode of n steps thus gives 1 + n // frame_every frames. An env whose step runs several control
 periods (`multi_period_steps`: the monoped's hop-level task, a step a hop) is counted by its periods
-instead, through its `period_hooks`, so its video is in real time too. Only the first `episodes`
-episodes after the wrapper is made are recorded; the file is complete once the wrapper is closed.
+instead, through its `period_hooks`, so its video is in real time too. `slow_motion` K plays it K times
+slower than real time, with frames taken K times as often (still at most MAX_FPS a second of video): K = 4
+shows a monoped's hop, a flight of about 0.2 s, in some 20 frames. Only the first `episodes` episodes after
+the wrapper is made are recorded; the file is complete once the wrapper is closed.
 """
 from __future__ import annotations
 
@@ -28,19 +30,23 @@ def frame_every(render_fps: float, max_fps: float = MAX_FPS) -> int:
 
 
 class VideoRecorder(gymnasium.Wrapper[Any, Any, Any, Any]):
-    """Records the first `episodes` episodes (all if None) of an env made with render_mode="rgb_array"."""
+    """Records the first `episodes` episodes (all if None) of an env made with render_mode="rgb_array",
+    `slow_motion` times slower than real time (1: real time)."""
 
     def __init__(self, env: gymnasium.Env[Any, Any], path: str | Path, episodes: int | None = None,
-                 max_fps: float = MAX_FPS):
+                 max_fps: float = MAX_FPS, slow_motion: float = 1.0):
         super().__init__(env)
         if env.render_mode != "rgb_array":
             raise ValueError(f"recording a video needs an env made with render_mode='rgb_array', not "
                              f"{env.render_mode!r}")
+        if not (isinstance(slow_motion, (int, float)) and math.isfinite(slow_motion) and 1.0 <= slow_motion <= 100.0):
+            raise ValueError(f"slow_motion must be a number from 1 (real time) to 100, got {slow_motion!r}")
         render_fps = float(env.metadata["render_fps"])
         self.path = Path(path)
         self.episodes = episodes
-        self.frame_every = frame_every(render_fps, max_fps)
-        self.fps = render_fps / self.frame_every
+        self.slow_motion = float(slow_motion)
+        self.frame_every = frame_every(render_fps / self.slow_motion, max_fps)
+        self.fps = render_fps / self.frame_every / self.slow_motion  # frames per second of video
         self.frames = 0                  # written so far
         self.episodes_recorded = 0       # started while recording
         self._steps = 0                  # steps (or control periods) of the episode being recorded
