@@ -212,6 +212,8 @@ def demo(args: list[str]) -> Plan:
         known = ", ".join(sorted(path.name for path in shipped.iterdir())) if shipped.is_dir() else ""
         raise WsError(f"no shipped policy '{policy}' for {name} (known: {known})")
     video = os.path.realpath(args[0] if args else f"demo_{name}.mp4")
+    if not video.endswith(".mp4") or os.path.isdir(video):
+        raise WsError(f"the video must be an .mp4 file, got '{args[0]}'{' (a folder)' if os.path.isdir(video) else ''}")
     needs = _requirements(DEEP) if (shipped / policy / "agent.json").is_file() else []
     return Plan(needs, ["rosrun", robot.package, "evaluate.py", "--run", str(shipped / policy), "--episodes", "1",
                         "--video", video, "--video-episodes", "1"])
