@@ -2,8 +2,11 @@
 one its agent.json recorded, and end with one line on a damaged one or a bad option; ship_policy.py ships nothing
 it cannot load back and replaces a policy folder whole."""
 import hashlib
+import io
 import json
+import os
 import shutil
+import zipfile
 
 import pytest
 
@@ -12,6 +15,7 @@ from hopper_training import scripted_policies
 from moving_cube_training import TASKS as CUBE_TASKS
 from robot_rl import evaluation
 from workspace_tools.paths import REPO
+from workspace_tools.ship import ship_run
 
 SHIPPED = REPO / "hopper_training" / "policies"
 CUBE_DEMO = REPO / "moving_cube_training" / "policies" / "demo"
@@ -119,3 +123,87 @@ def test_demo_into_a_video_that_is_not_an_mp4_file_is_one_line(tmp_path, monkeyp
     monkeypatch.setattr(cli.os, "execvp", lambda *args: pytest.fail(f"{args} ran"))
     assert cli.main(["demo", "cube", video]) == 1
     assert capsys.readouterr().err == f"[ws] error: {expected}\n"
+
+
+def _umask():
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def shipped_files(folder):
+    return sorted(p.name for p in folder.iterdir())
+
+
+def zip_of(entries):
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w") as archive:
+        for name, data in entries.items():
+            archive.writestr(name, data)
+    return out.getvalue()
+
+
+@pytest.mark.deep
+@pytest.mark.parametrize("damage, expected", [
+    ("no_weights_with_its_digest", "not shipped, its policy does not load: "),
+    ("not_a_zip_with_its_digest", "not shipped, its policy does not load: "),
+    ("another_policys_weights", "not the model.zip"),
+])
+def test_a_damaged_run_ships_nothing_and_leaves_the_old_policy(tmp_path, damage, expected):
+    run = copied(tmp_path)
+    model_zip = run / "model.zip"
+    if damage == "another_policys_weights":
+        shutil.copyfile(SHIPPED / "residual_forward_sac" / "model.zip", model_zip)
+    else:
+        model_zip.write_bytes(zip_of({"data": "{}"}) if damage.startswith("no_weights") else b"not a zip at all")
+        set_digest(run, hashlib.sha256(model_zip.read_bytes()).hexdigest())
+    destination = tmp_path / "policies" / "demo"
+    shutil.copytree(CUBE_DEMO, destination)
+    before = {p.name: p.read_bytes() for p in destination.iterdir()}
+    with pytest.raises(ValueError, match=f"^{run}: not shipped") as refused:
+        ship_run(run, destination)
+    assert expected in str(refused.value) and "\n" not in str(refused.value), refused.value
+    assert {p.name: p.read_bytes() for p in destination.iterdir()} == before, "the old policy is left whole"
+    assert shipped_files(destination.parent) == ["demo"], "no staging folder left"
+
+
+@pytest.mark.deep
+def test_shipping_over_a_policy_replaces_the_folder_whole(tmp_path):
+    destination = tmp_path / "policies" / "demo"
+    shutil.copytree(CUBE_DEMO, destination)  # a Q-table policy
+    names = ship_run(SHIPPED / "residual_in_place_sac", destination)
+    assert shipped_files(destination) == sorted(names) == ["agent.json", "episodes.csv", "learning_curve.png",
+                                                           "model.zip", "params.yaml", "summary.json"]
+    assert oct(destination.stat().st_mode & 0o777) == oct(0o777 & ~_umask()), "a folder as others of the checkout"
+    names = ship_run(CUBE_DEMO, destination)  # and back: no agent.json or model.zip left beside qtable.json
+    assert shipped_files(destination) == sorted(names) == sorted(p.name for p in CUBE_DEMO.iterdir())
+    assert {p.name: p.read_bytes() for p in destination.iterdir()} == \
+        {p.name: p.read_bytes() for p in CUBE_DEMO.iterdir()}
+    assert shipped_files(destination.parent) == ["demo"], "no staging folder left"
+
+
+def test_shipping_is_one_rename_of_a_folder_written_beside_it(tmp_path, monkeypatch):
+    """The new folder is written and loaded back beside the destination, then exchanged with the old one in one
+    rename: the destination's inode is the staged folder's."""
+    from workspace_tools import ship
+    destination = tmp_path / "policies" / "demo"
+    shutil.copytree(CUBE_DEMO, destination)
+    (destination / "model.zip").write_bytes(b"an old deep policy's file")
+    staged = []
+    swap = ship._swap_in
+
+    def watched(folder, target):
+        staged.append((folder.stat().st_ino, sorted(p.name for p in folder.iterdir())))
+        assert (target / "model.zip").is_file(), "the old policy is whole until the swap"
+        swap(folder, target)
+    monkeypatch.setattr(ship, "_swap_in", watched)
+    ship_run(CUBE_DEMO, destination)
+    assert staged == [(destination.stat().st_ino, shipped_files(destination))]
+    assert "model.zip" not in shipped_files(destination)
+
+
+def test_shipping_onto_a_file_is_refused(tmp_path):
+    (tmp_path / "demo").write_text("a file")
+    with pytest.raises(ValueError, match="demo: not a folder"):
+        ship_run(CUBE_DEMO, tmp_path / "demo")
+    assert (tmp_path / "demo").read_text() == "a file"
