@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Ship a trained run into the repository: its checkpoint, params and results, a deep run's model.zip with
-its weights only (workspace_tools.ship).
+its weights only (workspace_tools.ship): loaded back before it replaces the destination folder whole.
 
   ship_policy.py RUN DESTINATION
   e.g. ./ws exec rosrun workspace_tools ship_policy.py training_results/residual_forward-sac/sac_s0 \
@@ -22,6 +22,9 @@ def main(argv: list[str]) -> int:
         names = ship_run(args.run, args.destination)
     except (OSError, ValueError) as error:
         print(f"ship_policy.py: {error}", file=sys.stderr)
+        return 1
+    except ModuleNotFoundError as error:  # a deep run is loaded back before it ships: torch and SB3
+        print(f"ship_policy.py: loading the policy back needs {error.name}: ./ws setup deep", file=sys.stderr)
         return 1
     print(f"wrote {', '.join(names)} to {args.destination}")
     return 0

@@ -27,13 +27,17 @@ time, or `--slow-motion K` times slower, at most 30 frames/s, from the robot's c
 adds "video": {"path", "episodes", "frames", "fps", "slow_motion"} to the JSON; recording changes none of the
 numbers.
 The direct backend (default) needs nothing running; `--backend ros` needs the task's sim node.
-A lost sim, or a sim state that is no longer finite, ends it with one line and exit code 1 (either backend).
+A lost sim, or a sim state that is no longer finite, ends it with one line and exit code 1 (either backend), as
+does a deep run's model.zip that is not the one its agent.json recorded (robot_rl.agents.sb3.policy). A bad option
+is one line and exit code 2: `--seed` in [0, 2**31 - 1] (a training seed's range), `--horizon-s` finite in
+(0, MAX_HORIZON_S], `--speed` finite, `--video` an .mp4 file, not a folder.
 Every robot package's evaluate.py is this, for its own tasks.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -52,11 +56,13 @@ from .envs.backends.ros import init_ros_node
 from .params import ParamError
 from .policies import ScriptedPolicy, constant_policy, random_actions
 from .runs.loaded import LoadedRun
-from .runs.results import RunDirectory, aggregate
+from .runs.results import RunDirectory, RunFileError, aggregate
 from .runs.video import VideoRecorder
 from .task import Episode, TaskSpec, episode_duration, find_task, make_env
 
 MAX_VIDEO_SIDE = 4096
+MAX_SEED = 2**31 - 1      # as a training's seed:= (ROS's int, numpy's seed)
+MAX_HORIZON_S = 86400.0   # s of sim time per episode at most: a day
 EVAL_INITIAL_TILT = (0.02, 0.05)  # rad: evaluation episodes start leaning this much, where the task can
 
 
@@ -194,12 +200,30 @@ def video_size(text: str) -> tuple[int, int]:
     return int(match[1]), int(match[2])
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse whose errors are one line (no usage above it), exit code 2 as argparse's."""
+
+    def error(self, message: str) -> Any:  # argparse's signature is NoReturn
+        self.exit(2, f"{self.prog}: error: {message} ({self.prog} --help lists the options)\n")
+
+
+def finite_float(text: str) -> float:
+    """A finite number from the command line (argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
+    return value
+
+
 def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
          policies: Mapping[str, ScriptedPolicy] | None = None) -> int:
     """evaluate.py of a robot package: its `tasks`, the hand-written `policies` it offers, and `constant`, action
     --action N every step (--policy)."""
     policies = policies or {}
-    parser = argparse.ArgumentParser(prog="evaluate.py", description=__doc__.splitlines()[0])
+    parser = OneLineParser(prog="evaluate.py", description=__doc__.splitlines()[0])
     parser.add_argument("--qtable", "--run", dest="run", type=Path,
                         help="a run folder, or its qtable.json or agent.json (the greedy policy)")
     parser.add_argument("--policy", choices=("greedy", *policies, "constant"), default="greedy",
@@ -207,16 +231,16 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
                              "constant (--action N every step)")
     parser.add_argument("--task", choices=[task.name for task in tasks], default=tasks[0].name,
                         help=f"--policy other than greedy: the task (default {tasks[0].name})")
-    parser.add_argument("--speed", type=float, default=0.0,
+    parser.add_argument("--speed", type=finite_float, default=0.0,
                         help="--policy other than greedy: its commanded speed along +x, m/s (default 0)")
     parser.add_argument("--action", type=int,
                         help="--policy constant: the action taken every step (a Discrete action's index)")
     parser.add_argument("--episodes", type=int, default=20, help="episodes per policy (default 20)")
-    parser.add_argument("--horizon-s", type=float, help="sim seconds per episode at most (default: the task's)")
+    parser.add_argument("--horizon-s", type=finite_float, help="sim seconds per episode at most (default: the task's)")
     parser.add_argument("--backend", choices=("direct", "ros"), default="direct",
                         help="direct: an in-process sim (default); ros: the running sim node")
     parser.add_argument("--seed", type=int, default=0, help="seeds the sim, the random policy and tie breaks")
-    parser.add_argument("--initial-tilt", type=float, nargs=2, metavar=("LOW", "HIGH"),
+    parser.add_argument("--initial-tilt", type=finite_float, nargs=2, metavar=("LOW", "HIGH"),
                         help=f"episodes start leaning a random angle in [LOW, HIGH] rad, where the task can (default "
                              f"{EVAL_INITIAL_TILT[0]} {EVAL_INITIAL_TILT[1]}; 0 0: upright)")
     parser.add_argument("--video", type=Path, help="record the first greedy episodes to this .mp4 file")
@@ -229,12 +253,16 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
         parser.error("--qtable RUN is needed for the greedy policy, and only for it")
     if args.episodes < 1:
         parser.error("--episodes must be >= 1")
-    if args.horizon_s is not None and not args.horizon_s > 0.0:
-        parser.error("--horizon-s must be > 0")
+    if args.horizon_s is not None and not 0.0 < args.horizon_s <= MAX_HORIZON_S:
+        parser.error(f"--horizon-s must be > 0 and at most {MAX_HORIZON_S:.0f} s, got {args.horizon_s}")
+    if not 0 <= args.seed <= MAX_SEED:
+        parser.error(f"--seed must be from 0 to {MAX_SEED}, got {args.seed}")
     video = None
     if args.video is not None:
         if args.video.suffix != ".mp4":
             parser.error(f"--video must name an .mp4 file, got {str(args.video)!r}")
+        if args.video.is_dir():
+            parser.error(f"--video: {str(args.video)!r} is a folder, not an .mp4 file")
         if not args.video.parent.is_dir():
             parser.error(f"--video: the folder {str(args.video.parent)!r} does not exist")
         if not 1 <= args.video_episodes <= args.episodes:
@@ -252,6 +280,8 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
         return _main_scripted(parser, args, find_task(list(tasks), args.task), scripted, node_name)
     try:
         run = TrainedRun(args.run, tasks)
+    except RunFileError as error:  # a file of the run that is not what its checkpoint recorded (a deep run's model)
+        parser.exit(1, f"evaluate.py: {error}\n")
     except (OSError, ParamError, ValueError) as error:
         parser.exit(2, f"evaluate.py: cannot read the trained run {args.run}: {error}\n")
     except ModuleNotFoundError as error:  # a deep run without requirements-deep.txt
@@ -274,7 +304,8 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
         parser.exit(2, f"evaluate.py: {error}\n")
     try:
         report = evaluate(run, args.episodes, horizon_s, args.backend, args.seed, video, initial_tilt)
-    except (SimConnectionError, SimStateError) as error:  # SimStateError: the direct backend's non-finite readings
+    except (SimConnectionError, SimStateError, RunFileError) as error:
+        # SimStateError: the direct backend's non-finite readings; RunFileError: weights that do not fit the model
         parser.exit(1, f"evaluate.py: {error}\n")
     print(json.dumps(report))
     return 0

@@ -272,8 +272,11 @@ def demo(args: list[str]) -> Plan:
     elif args and args[0].startswith("run:="):
         run_path = args.pop(0).removeprefix("run:=")
     robot = ROBOTS[_robot(name)]
-    if len(args) > 1 or (args and not args[0].endswith(".mp4")):
+    if len(args) > 1:
         raise WsError("usage: ./ws demo [cube|hopper] [policy:=NAME|run:=RUN_FOLDER] [VIDEO.mp4]")
+    if args and (not args[0].endswith(".mp4") or os.path.isdir(args[0])):
+        folder = " (a folder)" if os.path.isdir(args[0]) else ""
+        raise WsError(f"the video must be an .mp4 file, got '{args[0]}'{folder}")
     if run_path:
         played = Path(run_path).resolve()
         if not played.is_dir():

@@ -7,8 +7,10 @@ statistics, a small object store, a token: one per process, TOKEN, as Ray reads 
 carries a mark in its environment, which every process it starts inherits (Ray's daemons, its workers and what
 they start: env workers' masters and sim nodes), so `processes()` finds them all. `connect()` makes this
 process the cluster's driver (until `disconnect()`); `kill_node(i)` kills node i at once, as a machine lost
-(or its raylet crashed); close() ends each node by its PID (SIGTERM, then SIGKILL to its process group), kills whatever
-still carries the mark and returns those pids (none, when all ended cleanly). Use it as a context manager.
+(or its raylet crashed); each node's temp folder is private as `./ws cluster`'s (robot_rl.workers.cluster: mode
+0700, Ray's folders inside it 0700 once it is up); close() ends each node by its PID (SIGTERM, then SIGKILL to
+its process group), kills whatever still carries the mark and returns those pids (none, when all ended
+cleanly). Use it as a context manager.
 
 Ray 2.60 does not put a node on 127.0.0.1: it advertises the machine's address and its servers listen on
 every interface (robot_rl.workers.cluster); `listening_sockets()` says where each process of the cluster listens.
@@ -70,6 +72,7 @@ class LoopbackCluster:
                                        stderr=subprocess.STDOUT, start_new_session=True)
         self.processes_started.append(process)
         ray_cluster.wait_started(process, log)
+        ray_cluster.make_private(temp_dir)
         if not self.address:
             self.address = ray_cluster.head_address(temp_dir)
 

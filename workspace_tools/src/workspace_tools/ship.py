@@ -6,36 +6,74 @@ episodes.csv, learning_curve.png and summary.json. Shipped, SB3's model.zip keep
 *.pth entries, read with torch's weights_only by SB3's set_parameters) and its version: SB3's `data` entry
 (JSON with cloudpickled objects, which evaluate.py never reads) and system_info.txt are left out, and
 agent.json's model_sha256 is that of the new file. evaluate.py --run, ./ws demo and resume read it as the run.
+
+Nothing ships that evaluate.py would not play: the run is loaded as evaluate.py loads it (a deep run's model.zip
+must be the one its agent.json recorded), the policy is written to a folder of its own beside the destination and
+loaded back from there (a deep policy's weights into the model rebuilt on the task's env), and only then does that
+folder take the destination's place: in one rename (renameat2's RENAME_EXCHANGE; two renames where the file system
+cannot), so a reader sees the old policy or the new one, never files of both, and a failure leaves the old one.
 """
 from __future__ import annotations
 
+import ctypes
+import errno
 import hashlib
+import importlib
 import json
+import os
 import shutil
+import tempfile
 import zipfile
+from collections.abc import Sequence
 from io import BytesIO
 from pathlib import Path
+from typing import Any
 
-from robot_rl import write_bytes_atomic, write_json_atomic
+from robot_rl import RunFileError, TaskSpec, TrainedRun, make_env, write_bytes_atomic, write_json_atomic
+from workspace_tools.robots import ROBOTS
 
 RESULTS = ("params.yaml", "episodes.csv", "learning_curve.png", "summary.json")
 TABULAR_CHECKPOINT, DEEP_CHECKPOINT, MODEL = "qtable.json", "agent.json", "model.zip"
 KEPT_ENTRIES = ("_stable_baselines3_version",)  # besides every *.pth
+RENAME_EXCHANGE, AT_FDCWD = 2, -100  # linux/fs.h, fcntl.h
 
 
-def weights_only(model_zip: bytes) -> bytes:
+def weights_only(model_zip: bytes, source: Path) -> bytes:
     """SB3's model.zip with only its torch tensors (*.pth) and its version entry, in their order."""
     out = BytesIO()
-    with zipfile.ZipFile(BytesIO(model_zip)) as source, zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as target:
-        for entry in source.infolist():
-            if entry.filename.endswith(".pth") or entry.filename in KEPT_ENTRIES:
-                target.writestr(entry.filename, source.read(entry))
+    try:
+        with zipfile.ZipFile(BytesIO(model_zip)) as source_zip, \
+                zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as target:
+            for entry in source_zip.infolist():
+                if entry.filename.endswith(".pth") or entry.filename in KEPT_ENTRIES:
+                    target.writestr(entry.filename, source_zip.read(entry))
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError) as error:
+        raise ValueError(f"{source}: not a model.zip SB3 wrote ({error})") from None
     return out.getvalue()
 
 
-def ship_run(run: Path, destination: Path) -> list[str]:
-    """Copy run (a run folder or its `latest` link) to destination (created, or emptied of these files);
-    returns the names written. ValueError for a folder that is not a finished run."""
+def all_tasks() -> list[TaskSpec[Any]]:
+    """Every task of every robot ./ws knows (a run's checkpoint names its task)."""
+    return [task for robot in ROBOTS.values() for task in importlib.import_module(robot.package).TASKS]
+
+
+def load_back(checkpoint: Path, tasks: Sequence[TaskSpec[Any]]) -> TrainedRun:
+    """The run of `checkpoint` as evaluate.py loads it, its policy built on the task's env (a deep policy's weights
+    loaded into its model) and asked for one action; ValueError (or RunFileError) if it cannot be."""
+    run = TrainedRun(checkpoint, tasks)
+    env = make_env(run.task, params=run.params, backend="direct", seed=0)
+    try:
+        observation, _ = env.reset(seed=0)
+        run.policy(env, 0)(observation)
+    finally:
+        env.close()
+    return run
+
+
+def ship_run(run: Path, destination: Path, tasks: Sequence[TaskSpec[Any]] | None = None) -> list[str]:
+    """Ship run (a run folder or its `latest` link) as the folder destination, replacing whatever policy was there
+    in one rename; returns the names written. ValueError for a folder that is not a finished run, or a policy that
+    does not load (as evaluate.py would load it) from the run or from what would be shipped; nothing changes then."""
     run = run.resolve()
     missing = [name for name in RESULTS if not (run / name).is_file()]
     if missing:
@@ -45,15 +83,62 @@ def ship_run(run: Path, destination: Path) -> list[str]:
         raise ValueError(f"{run}: no checkpoint ({TABULAR_CHECKPOINT} or {DEEP_CHECKPOINT})")
     if deep and not (run / MODEL).is_file():
         raise ValueError(f"{run}: {DEEP_CHECKPOINT} without its {MODEL}")
-    destination.mkdir(parents=True, exist_ok=True)
+    if destination.is_symlink() or destination.exists() and not destination.is_dir():
+        raise ValueError(f"{destination}: not a folder (a policy is shipped as a folder of its own)")
+    tasks = all_tasks() if tasks is None else tasks
+    checkpoint_name = DEEP_CHECKPOINT if deep else TABULAR_CHECKPOINT
+    try:
+        load_back(run / checkpoint_name, tasks)
+    except (RunFileError, ValueError) as error:
+        raise ValueError(f"{run}: not shipped, its policy does not load: {error}") from None
+    destination.parent.mkdir(parents=True, exist_ok=True)
+    staged = Path(tempfile.mkdtemp(prefix=f".{destination.name}.shipping-", dir=destination.parent))
+    try:
+        names = _write(run, staged, deep)
+        try:
+            load_back(staged / checkpoint_name, tasks)
+        except (RunFileError, ValueError) as error:
+            raise ValueError(f"{run}: not shipped, the policy written from it does not load back: {error}") from None
+        staged.chmod(0o777 & ~_umask())  # mkdtemp's 0700 -> a folder as any other of the checkout
+        _swap_in(staged, destination)
+    finally:
+        shutil.rmtree(staged, ignore_errors=True)  # the old policy after a swap; the new one after a failure
+    return names
+
+
+def _write(run: Path, folder: Path, deep: bool) -> list[str]:
     for name in RESULTS:
-        shutil.copyfile(run / name, destination / name)
+        shutil.copyfile(run / name, folder / name)
     if not deep:
-        shutil.copyfile(run / TABULAR_CHECKPOINT, destination / TABULAR_CHECKPOINT)
+        shutil.copyfile(run / TABULAR_CHECKPOINT, folder / TABULAR_CHECKPOINT)
         return [*RESULTS, TABULAR_CHECKPOINT]
-    model = weights_only((run / MODEL).read_bytes())
+    model = weights_only((run / MODEL).read_bytes(), run / MODEL)
     checkpoint = json.loads((run / DEEP_CHECKPOINT).read_text())
     checkpoint["model_sha256"] = hashlib.sha256(model).hexdigest()
-    write_bytes_atomic(destination / MODEL, model)
-    write_json_atomic(destination / DEEP_CHECKPOINT, checkpoint)
+    write_bytes_atomic(folder / MODEL, model)
+    write_json_atomic(folder / DEEP_CHECKPOINT, checkpoint)
     return [*RESULTS, DEEP_CHECKPOINT, MODEL]
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def _swap_in(staged: Path, destination: Path) -> None:
+    """`staged` becomes `destination`; an old `destination` becomes `staged` (for the caller to remove)."""
+    if not destination.exists():
+        staged.rename(destination)
+        return
+    libc = ctypes.CDLL(None, use_errno=True)
+    if libc.renameat2(AT_FDCWD, os.fsencode(staged), AT_FDCWD, os.fsencode(destination), RENAME_EXCHANGE) == 0:
+        return
+    code = ctypes.get_errno()
+    if code not in (errno.EINVAL, errno.ENOSYS, errno.EOPNOTSUPP):
+        raise OSError(code, os.strerror(code), str(destination))
+    old = Path(tempfile.mkdtemp(prefix=f".{destination.name}.old-", dir=destination.parent))
+    destination.rename(old / destination.name)  # a file system without RENAME_EXCHANGE: two renames
+    staged.rename(destination)
+    (old / destination.name).rename(staged)
+    old.rmdir()

@@ -46,7 +46,6 @@ import platform
 import shutil
 import subprocess
 import sys
-import tempfile
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -58,6 +57,7 @@ import yaml
 from robot_rl import (
     ClusterError,
     RunDirectory,
+    cluster,
     format_duration,
     free_port,
     prepare_child,
@@ -309,16 +309,18 @@ def _open_sweep(spec: SweepSpec) -> tuple[SweepSpec, Path]:
     return spec, sweep_dir
 
 
-def _start_ray(spec: SweepSpec, temp_dir: str) -> None:
-    """Join `spec.cluster` (robot_rl.workers.cluster.connect: "ray" or HOST:PORT), else start Ray on this machine."""
+def _start_ray(spec: SweepSpec, temp_dir: Path) -> None:
+    """Join `spec.cluster` (robot_rl.workers.cluster.connect: "ray" or HOST:PORT, bounded), else start Ray on this
+    machine, its temp folder inside `temp_dir` (private: robot_rl.workers.cluster.new_temp_dir)."""
     if spec.cluster:
         from robot_rl import connect
         connect(spec.cluster)
         return
     import ray
-    ray.init(address="local", num_cpus=spec.concurrent or None, include_dashboard=False, _temp_dir=temp_dir,
-             _node_ip_address="127.0.0.1", object_store_memory=100 * 2**20, log_to_driver=False,
-             logging_level=logging.WARNING)
+    ray.init(address="local", num_cpus=spec.concurrent or None, include_dashboard=False,
+             _temp_dir=str(cluster.ray_dir(temp_dir)), _node_ip_address="127.0.0.1", object_store_memory=100 * 2**20,
+             log_to_driver=False, logging_level=logging.WARNING)
+    cluster.make_private(temp_dir)
 
 
 def _tune(spec: SweepSpec, sweep_dir: Path, jobs: list[TrialJob], progress: Progress) -> list[str]:
@@ -392,7 +394,7 @@ def main(argv: Sequence[str]) -> int:
         os.environ["RAY_USAGE_STATS_ENABLED"] = "0"
         os.environ.setdefault("RAY_AIR_NEW_OUTPUT", "0")  # with verbose=0: no tables from Tune, our lines only
         import ray
-        temp_dir = tempfile.mkdtemp(prefix="ray", dir="/tmp")  # short: Ray's socket paths must fit 107 bytes
+        temp_dir = cluster.new_temp_dir()  # short (Ray's socket paths must fit 107 bytes) and private (0700)
         try:
             _start_ray(spec, temp_dir)
             spec = dataclasses.replace(spec, concurrent=spec.concurrent or int(ray.cluster_resources().get("CPU", 1)))

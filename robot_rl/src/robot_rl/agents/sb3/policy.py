@@ -1,8 +1,14 @@
 """A deep agent's trained run as a deterministic policy: the agent registry's policy loader, for evaluate.py and
-the training video."""
+the training video.
+
+No policy plays unless its model.zip is the file its agent.json recorded: the sha256 there (`model_sha256`) must
+match before any env is made, and the weights must then fit the model rebuilt from agent.json's params; else one
+RunFileError naming model.zip (a checkpoint without a digest is refused too: nothing tells its model.zip is its own).
+"""
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import gymnasium
@@ -16,7 +22,9 @@ from ...runs.loaded import LoadedRun
 from ...runs.results import RunFileError
 from ...workers.base import as_env_actions
 from .params import NetworkParams
-from .trainer import CHECKPOINT_FORMAT, build_model, one_line_reason
+from .trainer import CHECKPOINT_FORMAT, _sha256, build_model, one_line_reason
+
+MODEL_DIGEST = "model_sha256"  # agent.json's key: the sha256 of its model.zip (as the trainer writes it)
 
 
 class DeepPolicy:
@@ -39,14 +47,28 @@ def greedy_policy(run: LoadedRun, checkpoint: dict[str, Any]) -> Callable[[gymna
     except (KeyError, TypeError, ValueError, ParamError) as error:
         raise ValueError(f"{run.path}: not a deep agent's checkpoint ({error})") from None
     assert isinstance(agent_params, NetworkParams)
+    model_zip = run.path.with_name("model.zip")
+    check_model_zip(model_zip, checkpoint.get(MODEL_DIGEST), run.path)
 
     def policy(env: gymnasium.Env[Any, Any], _seed: int) -> DeepPolicy:
         torch.set_num_threads(1)
         model = build_model(agent_params, DummyVecEnv([lambda: env]), run.params.gamma, run.params.seed)
-        model_zip = run.path.with_name("model.zip")
         try:
             model.set_parameters(str(model_zip), exact_match=True, device="cpu")
         except Exception as error:  # noqa: BLE001 (zipfile, torch and SB3 each raise their own)
             raise RunFileError(f"{model_zip}: not weights of this run's model: {one_line_reason(error)}") from None
         return DeepPolicy(model)
     return policy
+
+
+def check_model_zip(model_zip: Path, digest: Any, checkpoint: Path) -> None:
+    """RunFileError naming `model_zip` unless it is there and has the sha256 `digest` that `checkpoint` recorded."""
+    if not isinstance(digest, str):
+        raise RunFileError(f"{model_zip}: {checkpoint} records no {MODEL_DIGEST} of it, so nothing tells it is this "
+                           f"run's model: a run written before digests is refused (resume:=true writes a checkpoint "
+                           f"with one)")
+    if not model_zip.is_file():
+        raise RunFileError(f"{model_zip}: missing: the checkpoint {checkpoint} needs it")
+    if _sha256(model_zip) != digest:
+        raise RunFileError(f"{model_zip}: not the model.zip {checkpoint} recorded (its sha256 differs): damaged, cut "
+                           f"short, or another run's")
