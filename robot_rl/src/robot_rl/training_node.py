@@ -248,11 +248,6 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     try:
         run = _open_run(node, results_name, checkpoint_name, params, task)
         context = dataclasses.replace(context, run_path=run.path)
-        complete = _completed_summary(run, params, node.max_steps) if node.resume else None
-        if complete is not None:
-            for line in complete_lines(context, complete):
-                rospy.logwarn(line)
-            return 0
         rospy.loginfo(start_line(dataclasses.replace(context, launch_dir=""), task.env_id, params.nepisodes,
                                  node.max_steps, None, node.quiet))
         if agent_config is not None:
@@ -276,6 +271,12 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
                               should_stop=should_stop)
         trainer = agent.make_trainer(env, task, params, run, hooks, resume=node.resume, agent_params=agent_params,
                                      max_steps=node.max_steps or None, agent_config=agent_config)
+        # after the trainer has checked the checkpoint: a damaged one is refused, never called complete
+        complete = _completed_summary(run, params, node.max_steps) if node.resume else None
+        if complete is not None:
+            for line in complete_lines(context, complete):
+                rospy.logwarn(line)
+            return 0
         summary = trainer.train()
     except (FileNotFoundError, FileExistsError, ValueError) as error:
         return _fail(str(error))

@@ -44,9 +44,11 @@ class QLearningTrainer(Learner):
                              f"action_mode targets is for the deep agents)")
         self.n_actions = int(space.n)
         self.running_step = params.running_step
+        self._hooks, self._resuming = hooks, ""
         if resume:
             self.qlearn, self.state, self.initial_epsilon = run.prepare_resume(self._restore)
-            hooks.log(f"Resuming {run.path} after episode {self.state.episode} (epsilon {self.qlearn.epsilon:.4f})")
+            self._resuming = (f"Resuming {run.path} after episode {self.state.episode} "
+                              f"(epsilon {self.qlearn.epsilon:.4f})")
         else:
             self.qlearn = QLearn(actions=range(self.n_actions), epsilon=params.epsilon, alpha=params.alpha,
                                  gamma=params.gamma, seed=params.seed, exploration=params.exploration,
@@ -134,6 +136,8 @@ class QLearningTrainer(Learner):
     def train(self) -> dict[str, Any]:
         """Run the remaining episodes; returns the summary written to summary.json."""
         params, state, ledger = self.params, self.state, self.ledger
+        if self._resuming:  # said when training starts: a resume of a complete run trains nothing
+            self._hooks.log(self._resuming)
         ledger.start()
         first = True
         while state.episode < params.nepisodes and not self.should_stop():

@@ -43,6 +43,8 @@ class VectorQLearningTrainer(QLearningTrainer):
     env: RobotVectorEnv  # type: ignore[assignment]  # QLearningTrainer's env, N of them
 
     def train(self) -> dict[str, Any]:
+        if self._resuming:
+            self._hooks.log(self._resuming)
         self.ledger.start()
         with self.ledger.saved_on_stop():
             self._train()

@@ -178,12 +178,14 @@ class DeepTrainer(Learner):
             self.model.exploration_schedule = self.schedule
         self.stopped: str | None = None
         self._timesteps_offset = self._steps_at_start = 0
+        self._hooks, self._resuming = hooks, ""
         if resume:
             self.state, num_timesteps = run.prepare_resume(self._restore)
             self.model.num_timesteps = num_timesteps
             if isinstance(self.model, OffPolicyAlgorithm):  # replay buffer not saved: fill it anew first
                 self.model.learning_starts = num_timesteps + self.model.learning_starts
-            hooks.log(f"Resuming {run.path} after episode {self.state.episode} ({self.state.env_steps} env steps)")
+            self._resuming = (f"Resuming {run.path} after episode {self.state.episode} "
+                              f"({self.state.env_steps} env steps)")
         else:
             self.state = TrainingState()
         if self.schedule is not None:
@@ -294,6 +296,8 @@ class DeepTrainer(Learner):
     def train(self) -> dict[str, Any]:
         """Train until nepisodes episodes (or max_steps env steps); returns the summary written to summary.json."""
         state, ledger = self.state, self.ledger
+        if self._resuming:  # said when training starts: a resume of a complete run trains nothing
+            self._hooks.log(self._resuming)
         ledger.start()
         self._timesteps_offset, self._steps_at_start = int(self.model.num_timesteps), state.env_steps
         remaining = self.max_steps - state.env_steps
