@@ -20,13 +20,21 @@ from typing import Any
 
 import gymnasium
 
-from ...params import TaskParams
+from ...params import ParamError, Params, TaskParams
 from ...runs.ledger import DEFAULT_HOOKS, Learner, RunLedger, TrainingHooks, TrainingState, restored_state
 from ...runs.results import EpisodeRecord, RunDirectory
 from ...task import Episode, TaskSpec, episode_duration
 from .qlearn import QLearn
 
 CHECKPOINT_FORMAT = "robot_rl.training_checkpoint/2"
+
+
+def check_fit(action_space: gymnasium.spaces.Space[Any], observation_space: gymnasium.spaces.Space[Any], n_envs: int,
+              agent_params: Params | None, source: str) -> None:
+    """The agent registry's fit check of tabular Q-learning: Discrete actions (ParamError in one line)."""
+    if not isinstance(action_space, gymnasium.spaces.Discrete):
+        raise ParamError(f"{source}: tabular Q-learning needs Discrete actions, the task has {action_space} "
+                         f"(try agent:=sac or ppo; the monoped's action_mode targets is for the deep agents)")
 
 
 class QLearningTrainer(Learner):
