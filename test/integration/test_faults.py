@@ -80,8 +80,9 @@ def episodes(results: Path, task: str = "moving_cube") -> list[int]:
     ({"init_cube_pose": {"x": 0.0, "y": 0.0}}, "missing parameter 'init_cube_pose/z'"),
     ({"running_step": 1e308}, "parameter 'running_step' = 1e+308 out of range (0.0, 100.0]"),
     ({"nsteps": 2 * 10**9}, "parameter 'nsteps' = 2000000000 out of range [1, 1000000000]"),
+    ({"alpah": 0.5}, "unknown parameter 'alpah' (known: alpha, gamma,"),
 ], ids=["missing_key", "wrong_type", "out_of_range", "negative_step", "missing_nested_key", "absurd_running_step",
-        "absurd_nsteps"])
+        "absurd_nsteps", "unknown_key"])
 def test_bad_param_stops_training_before_anything_is_written(master, tmp_path, changes, expected):
     document = yaml.safe_load(ONE_DISK_WALK.config_path.read_text())
     for key, value in changes.items():

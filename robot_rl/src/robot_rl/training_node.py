@@ -116,8 +116,8 @@ def _read_node_params() -> NodeParams:
 
 def _read_params(task: TaskSpec[Any], node: NodeParams) -> TaskParams:
     config_file = node.config_file
-    if Path(config_file).is_file():
-        load_yaml_file(config_file)  # rosparam keeps the last of two equal keys; a strict loader refuses them
+    if Path(config_file).is_file():  # rosparam keeps the last of two equal keys and every unknown one: refused here
+        task.params_from_document(load_yaml_file(config_file), config_file, strict=True)
     namespace = task.params_namespace
     params = task.params_type.from_mapping(rospy.get_param(namespace, {}), f"{config_file} ({namespace.rstrip('/')}/)")
     overrides = _private(("nepisodes", "seed"))

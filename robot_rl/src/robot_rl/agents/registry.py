@@ -84,16 +84,17 @@ class AgentSpec:
         return tuned if tuned is not None and tuned.is_file() else self.config_path
 
     def load_params(self, path: Path | None = None) -> Params | None:
-        """The agent's params from `path` (default: config_path); ParamError names the key. May raise
+        """The agent's params from `path` (default: config_path); ParamError names the key (an unknown one too). May raise
         ModuleNotFoundError when the agent needs requirements-deep.txt and it is not installed."""
         default = self.config_path
         if default is None:
             return None
         path = path or default
-        return self.load_params_from(load_yaml_file(path), str(path))
+        return self.load_params_from(load_yaml_file(path), str(path), strict=True)
 
-    def load_params_from(self, values: Any, source: str) -> Params | None:
-        return None if self.params is None else _resolve(self.params).from_mapping(values, source)
+    def load_params_from(self, values: Any, source: str, strict: bool = False) -> Params | None:
+        """The agent's params from a mapping; `strict` (a config file): an unknown key is refused too."""
+        return None if self.params is None else _resolve(self.params).from_mapping(values, source, strict=strict)
 
     def check_fit(self, env: Any, agent_params: Params | None, source: str) -> None:
         """ParamError in one line when this agent cannot train `env` (one env or N; its actions' kind, or a buffer
