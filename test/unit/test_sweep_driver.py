@@ -11,7 +11,7 @@ import yaml
 from robot_rl import RunDirectory
 from workspace_tools import sweep
 from workspace_tools.paths import REPO
-from workspace_tools.sweep import SweepLockedError, TrialJob, _open_sweep, _train
+from workspace_tools.sweep import TrialJob, _open_sweep, _train
 from workspace_tools.sweep_spec import SweepError, parse_sweep
 
 HOLD = textwrap.dedent("""
@@ -29,10 +29,12 @@ class Holder:
     def __init__(self, body: str):
         self.process = subprocess.Popen([sys.executable, "-c", HOLD.format(body=body)], cwd=REPO, text=True,
                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        assert self.process.stdout is not None and self.process.stdin is not None
         line = self.process.stdout.readline()  # bounded by the child: it prints or ends
-        assert line == "held\n", self.process.stderr.read()
+        assert line == "held\n", self.process.communicate(timeout=30)[1]
 
     def close(self) -> None:
+        assert self.process.stdin is not None
         self.process.stdin.close()
         self.process.wait(30)
 

@@ -123,7 +123,7 @@ class Params:
         params = _build(cls, values, source, "")
         unknown = _unknown_keys(cls, values, "") if strict else []
         if unknown:
-            known = ", ".join(f.name for f in dataclasses.fields(cls))
+            known = ", ".join(f.name for f in dataclasses.fields(cls))  # type: ignore[arg-type]
             raise ParamError(f"{source}: unknown parameter '{unknown[0]}'"
                              f"{f' (and {len(unknown) - 1} more)' if len(unknown) > 1 else ''} (known: {known})")
         params.check(source)

@@ -84,8 +84,8 @@ class AgentSpec:
         return tuned if tuned is not None and tuned.is_file() else self.config_path
 
     def load_params(self, path: Path | None = None) -> Params | None:
-        """The agent's params from `path` (default: config_path); ParamError names the key (an unknown one too). May raise
-        ModuleNotFoundError when the agent needs requirements-deep.txt and it is not installed."""
+        """The agent's params from `path` (default: config_path); ParamError names the key (an unknown one too).
+        May raise ModuleNotFoundError when the agent needs requirements-deep.txt and it is not installed."""
         default = self.config_path
         if default is None:
             return None
