@@ -24,14 +24,18 @@ sweep's folder DIR/<results name>/<SWEEP>/ (SWEEP: name:=, else the UTC time):
 The run folders are the source of truth: a trial whose folder holds a completed summary.json and
 evaluation.json is done; one with a checkpoint continues from it (resume:=true of the training node:
 episodes after the checkpoint are dropped and re-run, none repeated or lost); one without a checkpoint
-starts anew. So a failed trial (Tune retries it up to max_failures times) and an interrupted sweep
-(`resume:=true name:=SWEEP`, which runs the trials not done) go on where their runs' checkpoints are.
+starts anew (removed under the run's lock only: never while a training holds it). So a failed trial (Tune
+retries it up to max_failures times) and an interrupted sweep (`resume:=true name:=SWEEP`, which runs the
+trials not done, found by its name under every results folder of DIR) go on where their runs' checkpoints
+are. The driver holds the sweep's lock (<sweep>/.lock) for its life: a second driver of it stops in one line.
+A new sweep is checked whole (its trials, at most sweep_spec.MAX_TRIALS; the agent on each distinct env)
+before its folder is made, and a start that fails after removes it.
 One line per finished trial, with an ETA. Ray runs on this machine (a private temp dir, no dashboard, no
 usage statistics; Ray 2.60 listens on every interface whatever address it is given, and a local instance
 has its token authentication on, its default: docs/guide/distributed.md) unless cluster:=ADDRESS names a
 running cluster. Every ROS master and sim node of a trial is on 127.0.0.1.
-Exit codes: 0 every trial done, 1 a trial failed (the table has the others), 2 bad arguments, 130
-interrupted.
+Exit codes: 0 every trial done, 1 a trial failed (the table has the others) or another driver runs the
+sweep, 2 bad arguments, 130 interrupted.
 """
 from __future__ import annotations
 
