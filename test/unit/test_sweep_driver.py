@@ -1,6 +1,6 @@
-"""The sweep driver's folder, before any Ray (workspace_tools.sweep): one driver per sweep (its lock), a trial's run
-folder removed only under the run's lock, a resume that finds its sweep by name whatever its task and agent, and a
-start that fails leaving no half-made folder."""
+"""The sweep driver's folder, before any Ray (workspace_tools.sweep, sweep_folder): one driver per sweep (its
+lock), a trial's run folder removed only under the run's lock, a resume that finds its sweep by name whatever its
+task and agent, and a start that fails leaving no half-made folder."""
 import subprocess
 import sys
 import textwrap
@@ -9,9 +9,10 @@ import pytest
 import yaml
 
 from robot_rl import RunDirectory
-from workspace_tools import sweep
+from workspace_tools import sweep, sweep_folder
 from workspace_tools.paths import REPO
-from workspace_tools.sweep import TrialJob, _open_sweep, _train
+from workspace_tools.sweep import TrialJob, _train
+from workspace_tools.sweep_folder import open_sweep
 from workspace_tools.sweep_spec import SweepError, parse_sweep
 
 HOLD = textwrap.dedent("""
@@ -40,15 +41,15 @@ class Holder:
 
 
 def new_sweep(results, *args):
-    return _open_sweep(parse_sweep(["cube", "seeds:=0", "nepisodes:=2", "name:=race", f"results_dir:={results}",
+    return open_sweep(parse_sweep(["cube", "seeds:=0", "nepisodes:=2", "name:=race", f"results_dir:={results}",
                                     *args]))
 
 
 def test_a_second_driver_of_a_running_sweep_is_refused_in_one_line(tmp_path, capsys):
     results = tmp_path / "results"
-    holder = Holder("from workspace_tools.sweep import _open_sweep\n"
+    holder = Holder("from workspace_tools.sweep_folder import open_sweep\n"
                     "from workspace_tools.sweep_spec import parse_sweep\n"
-                    f"_open_sweep(parse_sweep(['cube', 'seeds:=0', 'nepisodes:=2', 'name:=race', "
+                    f"open_sweep(parse_sweep(['cube', 'seeds:=0', 'nepisodes:=2', 'name:=race', "
                     f"'results_dir:={results}']))")
     try:
         code = sweep.main(["cube", "name:=race", "resume:=true", f"results_dir:={results}"])
@@ -59,9 +60,9 @@ def test_a_second_driver_of_a_running_sweep_is_refused_in_one_line(tmp_path, cap
             new_sweep(results)
     finally:
         holder.close()
-    spec, sweep_dir = _open_sweep(parse_sweep(["cube", "name:=race", "resume:=true", f"results_dir:={results}"]))
+    spec, sweep_dir = open_sweep(parse_sweep(["cube", "name:=race", "resume:=true", f"results_dir:={results}"]))
     assert sweep_dir == results / "moving_cube" / "race" and spec.seeds == (0,)
-    other = subprocess.run([sys.executable, "-c", "from pathlib import Path\nfrom workspace_tools.sweep import "
+    other = subprocess.run([sys.executable, "-c", "from pathlib import Path\nfrom workspace_tools.sweep_folder import "
                             f"lock_sweep\nlock_sweep(Path({str(sweep_dir)!r}))"], cwd=REPO, capture_output=True,
                            text=True, timeout=60)
     assert other.returncode != 0 and "SweepLockedError" in other.stderr, "the resume holds the sweep's lock"
@@ -100,15 +101,15 @@ def test_a_resume_finds_its_sweep_by_name_whatever_its_task_and_agent(tmp_path):
     folder = write_sweep(results, "hop_in_place-dqn", "race", ["hopper", "task:=hop_in_place", "agent:=ppo",
                                                                "seeds:=0-1"], "MonopedHopInPlace-v0", "ppo")
     for args in (["hopper"], ["hopper", "task:=hop_in_place"], ["hopper", "task:=hop_in_place", "agent:=ppo"]):
-        assert sweep.find_sweep(parse_sweep([*args, "name:=race", "resume:=true", f"results_dir:={results}"])) \
+        assert sweep_folder.find_sweep(parse_sweep([*args, "name:=race", "resume:=true", f"results_dir:={results}"])) \
             == folder
     with pytest.raises(SweepError, match=r"no cube sweep 'race' .*there is: .*hop_in_place-dqn/race \(./ws sweep "
                                          r"hopper task:=hop_in_place"):
-        sweep.find_sweep(parse_sweep(["cube", "name:=race", "resume:=true", f"results_dir:={results}"]))
+        sweep_folder.find_sweep(parse_sweep(["cube", "name:=race", "resume:=true", f"results_dir:={results}"]))
     write_sweep(results, "monoped", "race", ["hopper", "seeds:=0"], "Monoped-v0", "qlearn")
     with pytest.raises(SweepError, match="is in 2 results folders .*add the task:= and agent:="):
-        sweep.find_sweep(parse_sweep(["hopper", "name:=race", "resume:=true", f"results_dir:={results}"]))
-    assert sweep.find_sweep(parse_sweep(["hopper", "task:=hop_in_place", "name:=race", "resume:=true",
+        sweep_folder.find_sweep(parse_sweep(["hopper", "name:=race", "resume:=true", f"results_dir:={results}"]))
+    assert sweep_folder.find_sweep(parse_sweep(["hopper", "task:=hop_in_place", "name:=race", "resume:=true",
                                          f"results_dir:={results}"])) == folder
 
 
@@ -139,7 +140,7 @@ def test_a_start_that_fails_after_its_folder_is_made_leaves_none(tmp_path, monke
 
     def full_disk(path, text):
         raise OSError(28, "No space left on device", str(path))
-    monkeypatch.setattr(sweep, "write_text_atomic", full_disk)
+    monkeypatch.setattr(sweep_folder, "write_text_atomic", full_disk)
     with pytest.raises(OSError, match="No space left"):
         new_sweep(results)
     assert list((results / "moving_cube").iterdir()) == [], "no half-made sweep blocks its name"
