@@ -80,8 +80,9 @@ def episodes(results: Path, task: str = "moving_cube") -> list[int]:
     ({"init_cube_pose": {"x": 0.0, "y": 0.0}}, "missing parameter 'init_cube_pose/z'"),
     ({"running_step": 1e308}, "parameter 'running_step' = 1e+308 out of range (0.0, 100.0]"),
     ({"nsteps": 2 * 10**9}, "parameter 'nsteps' = 2000000000 out of range [1, 1000000000]"),
+    ({"alpah": 0.5}, "unknown parameter 'alpah' (known: alpha, gamma,"),
 ], ids=["missing_key", "wrong_type", "out_of_range", "negative_step", "missing_nested_key", "absurd_running_step",
-        "absurd_nsteps"])
+        "absurd_nsteps", "unknown_key"])
 def test_bad_param_stops_training_before_anything_is_written(master, tmp_path, changes, expected):
     document = yaml.safe_load(ONE_DISK_WALK.config_path.read_text())
     for key, value in changes.items():
@@ -178,6 +179,35 @@ def test_a_deep_agents_buffer_beyond_reason_gives_one_line(master, tmp_path):
     assert result.returncode == 1, output[-3000:]
     assert str(agent_config) in one_line(output, "parameter 'buffer_size' = 1000000000000 out of range")
     assert not (tmp_path / "results").exists()
+
+
+@pytest.mark.parametrize("launch, args, folder, expected", [
+    (HOPPER_TRAINING, ["task:=residual_forward", "agent:=dqn"], "residual_forward-dqn",
+     "agent dqn on MonopedResidualForward-v0: DQN needs Discrete actions, the task has Box("),
+    (CUBE_TRAINING, ["agent:=sac"], "moving_cube-sac",
+     "agent sac on MovingCubeOneDiskWalk-v0: SAC needs Box (continuous) actions"),
+    (CUBE_TRAINING, ["agent:=dqn", "buffer_size: 1000000000"], "moving_cube-dqn",
+     "agent dqn on MovingCubeOneDiskWalk-v0: the agent's buffer needs"),
+], ids=["dqn_on_box_actions", "sac_on_discrete_actions", "buffer_beyond_the_memory"])
+def test_an_agent_that_cannot_train_the_task_writes_nothing(master, tmp_path, launch, args, folder, expected):
+    """Refused before the run folder is made: no folder, `latest` unchanged."""
+    results = tmp_path / "results"
+    launch_args = [arg for arg in args if ":=" in arg]
+    if "buffer_size: 1000000000" in args:  # in range (at most 10**9), beyond this machine's memory
+        agent_config = tmp_path / "dqn.yaml"
+        document = yaml.safe_load((REPO / "robot_rl" / "config" / "dqn.yaml").read_text())
+        document["buffer_size"] = 10**9
+        agent_config.write_text(yaml.safe_dump(document))
+        launch_args.append(f"agent_config:={agent_config}")
+    runs = results / folder
+    (runs / "before").mkdir(parents=True)
+    (runs / "latest").symlink_to("before")
+    result = master.run([*launch, *launch_args, f"results_dir:={results}"], timeout=240)
+    output = result.stdout + result.stderr
+    assert result.returncode == 1, output[-3000:]
+    one_line(output, expected)
+    assert sorted(p.name for p in runs.iterdir()) == ["before", "latest"], "no run folder"
+    assert os.readlink(runs / "latest") == "before" and not any((runs / "before").iterdir())
 
 
 def test_unknown_task_names_the_known_ones(master, tmp_path):

@@ -10,6 +10,7 @@ import os
 import re
 import signal
 import subprocess
+import sys
 import xmlrpc.client
 from pathlib import Path
 from typing import Any
@@ -19,6 +20,7 @@ import rosgraph
 import yaml
 
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
+from workspace_tools.paths import PROGRAMS
 from workspace_tools.processes import RosMaster, wait_for
 from workspace_tools.training_launch import write_cube_training_launch
 
@@ -112,3 +114,34 @@ def test_a_sim_restarted_mid_run_stops_it_with_one_line_and_resume_continues(mas
     assert episodes(results) == list(range(1, saved + 4)), "the run goes on on the new sim, no episode lost"
     sim.send_signal(signal.SIGINT)
     assert sim.wait(30) == 0
+
+
+@pytest.mark.parametrize("restart", [True, False], ids=["restarted", "gone"])
+def test_every_call_after_the_sim_is_lost_gives_the_clear_line(master, tmp_path, restart):
+    """An env over ROS (a user's script) whose sim node was killed, and started again or not, keeps answering every
+    step and reset with the one clear line (before: the second step gave rospy's TransportTerminated and the third
+    an AttributeError)."""
+    sim = start_sim(master, tmp_path / "sim.log")
+    first_address = sim_address(master)
+    client = master.start([sys.executable, str(PROGRAMS / "lost_sim_client.py")], stdin=subprocess.PIPE,
+                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert client.stdout.readline() == "ready\n", client.stderr.read()[-3000:]  # bounded: it prints or ends
+        os.kill(node_pid(master, "/pybullet_sim"), signal.SIGKILL)
+        sim.wait(30)
+        if restart:
+            sim = start_sim(master, tmp_path / "sim2.log", previous=first_address)
+        client.stdin.write("go\n")
+        client.stdin.flush()
+        output, errors = client.communicate(timeout=120)
+    finally:
+        if client.poll() is None:
+            client.kill()
+        if sim.poll() is None:
+            sim.send_signal(signal.SIGINT)
+            sim.wait(30)
+    lines = output.splitlines()
+    assert client.returncode == 0 and len(lines) == 4, output + errors[-3000:]
+    expected = "the sim node was restarted (it serves" if restart else "the sim node is gone (nothing serves"
+    for line in lines:
+        assert line.startswith("SimConnectionError: service ") and expected in line, lines

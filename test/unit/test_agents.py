@@ -110,3 +110,10 @@ def test_needs_deep_answers_by_exit_code():
     done = subprocess.run([sys.executable, "-c", "import sys, robot_rl.agents.registry; "
                            "sys.exit(robot_rl.agents.registry.main(['needs-deep', 'dqn']) or 'torch' in sys.modules)"])
     assert done.returncode == 0, "the registry answers without importing torch"
+
+
+def test_an_agent_config_with_an_unknown_key_is_refused_naming_it_and_the_file(tmp_path):
+    config = tmp_path / "dqn.yaml"
+    config.write_text(AGENTS["dqn"].config_path.read_text() + "learnig_rate: 0.1\n")
+    with pytest.raises(ParamError, match=rf"^{re.escape(str(config))}: unknown parameter 'learnig_rate' \(known: "):
+        AGENTS["dqn"].load_params(config)

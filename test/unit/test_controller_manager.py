@@ -149,3 +149,16 @@ def test_two_controllers_on_one_joint_conflict(cube_urdf, cube_params):
         assert manager.switch(["second_wheel_controller"], [WHEEL], STRICT).ok  # handing the joint over
     finally:
         world.close()
+
+
+@pytest.mark.parametrize("strictness", [STRICT, BEST_EFFORT])
+def test_a_huge_list_of_unknown_names_is_not_echoed_whole(manager, strictness):
+    """A switch naming 100 000 unknown controllers (megabytes) answers with their count and the first three, and a
+    name of a megabyte with its first 60 characters."""
+    unknown = [f"no_such_controller_{i}" for i in range(100_000)]
+    ok, message = manager.switch([], [WHEEL, *unknown], strictness)
+    assert ok == (strictness == BEST_EFFORT) and len(message) < 500, len(message)
+    assert "100000 names, the first 3: 'no_such_controller_0', 'no_such_controller_1', 'no_such_controller_2', ..." \
+        in message
+    ok, message = manager.load("x" * 10**6)
+    assert not ok and len(message) < 500 and "(1000000 characters)" in message and WHEEL in message

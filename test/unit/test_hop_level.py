@@ -191,3 +191,13 @@ def test_evaluate_refuses_a_constant_action_the_task_cannot_take_in_one_line(cap
         evaluation.main([*argv, "--episodes", "1"], TASKS, "evaluate_monoped")
     assert exit_info.value.code == 2
     assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name", ["hop_in_place", "residual_in_place", "residual_forward"])
+def test_a_running_step_the_hop_cycle_cannot_use_is_refused_naming_the_bound(name):
+    """running_step: 0.5 "completed" 150 episodes of 2 steps; the controller falls from a 10 ms period."""
+    from robot_rl import find_task
+    task = find_task(list(TASKS), name)
+    with pytest.raises(ParamError, match=r"^src: parameter 'running_step' = 0.5 out of range \(0.0, 0.005\]$"):
+        task.default_params().with_changes("src", running_step=0.5)
+    assert task.default_params().with_changes("src", running_step=0.005).running_step == 0.005

@@ -162,3 +162,51 @@ def test_a_restored_state_is_checked_against_the_format_and_the_task():
             restored_state({**checkpoint, **change}, "f/1", ONE_DISK_WALK)
     with pytest.raises(ValueError, match="wrong types"):
         restored_state({**checkpoint, "state": {**vars(state), "sim_time": math.nan}}, "f/1", ONE_DISK_WALK)
+
+
+@pytest.fixture
+def full_disk(tmp_path):
+    """A tmpfs of 256 KiB (this test runs as root; skipped where it cannot mount), unmounted after the test."""
+    import os
+    import subprocess
+    mount = tmp_path / "disk"
+    mount.mkdir()
+    if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(mount)],
+                                           capture_output=True).returncode != 0:
+        pytest.skip("needs root to mount a tmpfs")
+    try:
+        yield mount
+    finally:
+        subprocess.run(["umount", "-l", str(mount)], check=True)
+
+
+def fill(folder):
+    """Write into `folder` until the disk has no byte left."""
+    with open(folder / "filler", "wb", buffering=0) as f:
+        for size in (4096, 1):
+            try:
+                while True:
+                    f.write(b"\0" * size)
+            except OSError as error:
+                assert error.errno == 28, error  # ENOSPC
+
+
+def test_a_disk_with_no_room_left_gets_no_summary_the_stop_says_so_and_the_last_checkpoint_loads(full_disk):
+    """The honest behaviour on a real full filesystem: the stop path writes what fits, and on a disk with no byte
+    left nothing does; it logs each file it could not write and raises the original error. Nothing is half-written:
+    the checkpoint before is whole and resumes."""
+    ledger, learner, log = make_ledger(full_disk)
+    for _ in range(2):
+        ledger.episode_done(episode(), highest=1.0, epsilon=0.5)  # a checkpoint after episode 2
+    ledger.episode_done(episode(), highest=1.0, epsilon=0.5)
+    fill(full_disk)
+    with pytest.raises(RuntimeError, match="sim gone"), ledger.saved_on_stop():
+        raise RuntimeError("sim gone")
+    assert any(line.startswith("could not save the run's checkpoint after episode 3: ") and "No space left" in line
+               for line in log), log
+    assert any(line.startswith("could not save the run's summary after episode 3: ") and "No space left" in line
+               for line in log), log
+    assert not ledger.run.summary_json.exists()
+    assert ledger.run.load_checkpoint()["episode"] == 2
+    assert not [p.name for p in ledger.run.path.iterdir() if p.name.startswith(".") and p.name != ".lock"], \
+        "no temp file left"

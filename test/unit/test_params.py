@@ -163,3 +163,33 @@ def test_absurd_but_finite_task_params_are_refused(key, value):
     from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
     with pytest.raises(ParamError, match=f"parameter '{key}' = .* out of range"):
         ONE_DISK_WALK.default_params().with_changes("test", **{key: value})
+
+
+@dataclass(frozen=True, kw_only=True)
+class Tolerant(Example):
+    TOLERATED_KEYS = ("pos_step",)
+
+
+@pytest.mark.parametrize("extra, named", [
+    ({"alpah": 0.2}, "'alpah'"),
+    ({"init_cube_pose": {"x": 0, "y": 1, "z": 2.5, "w": 1}}, "'init_cube_pose/w'"),
+    ({"alpah": 0.2, "gama": 0.9}, "'alpah' (and 1 more)"),
+], ids=["top_level", "nested", "two"])
+def test_a_config_files_unknown_key_is_refused_naming_it_and_the_file(extra, named):
+    """strict (a config file): a typo is refused, not silently a default; the parameter server's other keys are
+    not (strict=False), and a type's TOLERATED_KEYS (the tutorials' unused keys) never are."""
+    with pytest.raises(ParamError) as info:
+        Example.from_mapping({**GOOD, **extra}, SRC, strict=True)
+    assert str(info.value).startswith(f"{SRC}: unknown parameter {named} (known: alpha, nepisodes,")
+    assert "\n" not in str(info.value)
+    Example.from_mapping({**GOOD, **extra}, SRC)
+    assert Tolerant.from_mapping({**GOOD, "pos_step": 0.016}, SRC, strict=True).alpha == 0.1
+
+
+def test_every_shipped_config_loads_strictly_the_cubes_with_the_tutorials_unused_keys():
+    from hopper_training import TASKS as HOPPER_TASKS
+    from moving_cube_training import TASKS as CUBE_TASKS
+    for task in (*HOPPER_TASKS, *CUBE_TASKS):
+        task.load_params(task.config_path)
+    cube = CUBE_TASKS[0]
+    assert {"pos_step", "number_splits", "max_distance"} <= set(load_yaml_file(cube.config_path)["moving_cube"])

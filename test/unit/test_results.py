@@ -190,3 +190,13 @@ def test_a_run_by_name(tmp_path):
         RunDirectory.named(tmp_path, "hopper", "second")
     with pytest.raises(ValueError, match="invalid run name"):
         RunDirectory.named(tmp_path, "hopper", "../first")
+
+
+@pytest.mark.parametrize("kind", ["folder", "file"])
+def test_a_latest_that_is_not_a_link_is_refused_before_the_run_folder_is_made(tmp_path, kind):
+    latest = tmp_path / "hopper" / "latest"
+    latest.parent.mkdir()
+    latest.mkdir() if kind == "folder" else latest.write_text("mine")
+    with pytest.raises(ValueError, match=f"{latest} is a {kind}, not the link to the newest run kept there"):
+        RunDirectory.create(tmp_path, "hopper", PARAMS, run_name="first")
+    assert sorted(p.name for p in latest.parent.iterdir()) == ["latest"], "no run folder, no temp file"

@@ -203,3 +203,24 @@ def test_a_damaged_checkpoint_is_refused_before_any_file_changes(tmp_path, damag
         make_trainer(run, params, resume=True)
     assert str(info.value).startswith(f"{run.qtable_json}: not a usable checkpoint")
     assert {p.name: p.read_bytes() for p in run.path.iterdir()} == before, "nothing was written"
+
+
+@pytest.mark.parametrize("changes", [{"alpha": 0.5}, {"epsilon": 0.2, "q_init": 5.0}, {"epsilon_discount": 0.5}],
+                         ids=["alpha", "epsilon_and_q_init", "epsilon_discount"])
+def test_a_resume_with_changed_learning_params_is_refused_naming_them_as_dqns_is(tmp_path, changes):
+    """A tabular resume refuses changed learning params as DeepTrainer refuses changed agent params (before: the
+    checkpoint's alpha was kept without a word); nepisodes may change (a run trained further)."""
+    params = cube_params(nepisodes=5, nsteps=10)
+    run = new_run(tmp_path, params, run_name="run")
+    train(run, params, checkpoint_every=5)
+    began = {name: getattr(params, name) for name in changes}
+    assert all(began[name] != value for name, value in changes.items())
+    before = {p.name: p.read_bytes() for p in run.path.iterdir()}
+    with pytest.raises(ValueError, match="its learning params differ from this run's") as info:
+        make_trainer(run, dataclasses.replace(params, **changes, nepisodes=8), resume=True)
+    expected = ", ".join(f"{name} {began[name]!r} there, {value!r} here" for name, value in changes.items())
+    assert f"({expected}): resume with the params the run began with" in str(info.value)
+    assert {p.name: p.read_bytes() for p in run.path.iterdir()} == before, "nothing was written"
+    trainer, env = make_trainer(run, dataclasses.replace(params, nepisodes=8), resume=True)
+    env.close()
+    assert trainer.state.episode == 5

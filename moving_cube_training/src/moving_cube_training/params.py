@@ -1,8 +1,8 @@
 """The cube task's parameters: the tutorial's one_disk_walk_openai_params.yaml keys, under /moving_cube/.
 
 Validated at start: a missing key, a wrong type or a value out of range stops with one line naming
-the key and the file. The tutorial's unused keys (pos_step, number_splits, max_distance) may stay in
-the YAML; nothing reads them.
+the key and the file, and so does a key the params do not declare, but for the tutorial's unused keys
+(pos_step, number_splits, max_distance, `TOLERATED_KEYS`): they may stay in the YAML; nothing reads them.
 """
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ N_ACTIONS = 5
 
 @dataclass(frozen=True, kw_only=True)
 class CubeParams(TaskParams):
+    TOLERATED_KEYS = ("pos_step", "number_splits", "max_distance")  # the tutorial's, unused
     n_actions: int = param(low=N_ACTIONS, high=N_ACTIONS, doc="wheel +fixed, -fixed, stop, +increment, -increment")
     init_roll_vel: float = param(doc="wheel command at the start of an episode (rad/s)")
     roll_speed_fixed_value: float = param(low=0.0, low_open=True, doc="wheel command of actions 0/1, and its bound")

@@ -29,6 +29,20 @@ from .config import JOINT_STATE_CONTROLLER, RobotConfig
 from .world import World
 
 BEST_EFFORT, STRICT = 1, 2  # controller_manager_msgs/SwitchController's constants
+ECHO_NAMES = 3              # names a message repeats of a request's list at most
+ECHO_CHARS = 60             # characters of one name a message repeats at most
+
+
+def _name(name: str) -> str:
+    """A name of a request, quoted, cut at ECHO_CHARS characters (a caller may send megabytes)."""
+    return repr(name) if len(name) <= ECHO_CHARS else f"{name[:ECHO_CHARS]!r}... ({len(name)} characters)"
+
+
+def _names(names: Sequence[str]) -> str:
+    """Names of a request for a message: all of a few, else their count and the first ECHO_NAMES."""
+    if len(names) <= ECHO_NAMES:
+        return ", ".join(map(_name, names))
+    return f"{len(names)} names, the first {ECHO_NAMES}: {', '.join(map(_name, names[:ECHO_NAMES]))}, ..."
 EFFORT_INTERFACE = "hardware_interface::EffortJointInterface"
 JOINT_STATE_INTERFACE = "hardware_interface::JointStateInterface"
 
@@ -75,16 +89,16 @@ class ControllerManager:
 
     def load(self, name: str) -> Result:
         if name in self._states:
-            return Result(False, f"a controller named {name!r} is already loaded in {self._namespace}")
+            return Result(False, f"a controller named {_name(name)} is already loaded in {self._namespace}")
         if name not in self._specs:
-            return Result(False, f"could not load {name!r}: the sim's configuration has no such controller "
+            return Result(False, f"could not load {_name(name)}: the sim's configuration has no such controller "
                                  f"(configured: {', '.join(self._specs)})")
         self._states[name] = "initialized"
         return Result(True, "")
 
     def unload(self, name: str) -> Result:
         if name not in self._states:
-            return Result(False, f"could not unload {name!r}: no controller with this name is loaded")
+            return Result(False, f"could not unload {_name(name)}: no controller with this name is loaded")
         if self._states[name] == "running":
             return Result(False, f"could not unload {name!r}: it is still running (stop it first)")
         del self._states[name]
@@ -99,7 +113,7 @@ class ControllerManager:
         strict = strictness == STRICT
         unknown = [name for name in (*stop, *start) if name not in self._states]
         if unknown:
-            message = f"no controller named {', '.join(map(repr, unknown))} is loaded in {self._namespace}"
+            message = f"no controller named {_names(unknown)} is loaded in {self._namespace}"
             if strict:
                 return Result(False, f"STRICT switch refused: {message}")
             notes.append(f"skipped: {message}")

@@ -4,8 +4,10 @@ A task declares its parameters as a frozen, keyword-only dataclass whose fields 
 (`param(low=..., high=...)`); nested dataclasses hold nested keys (`init_cube_pose: Point` reads
 `init_cube_pose/x, y, z`). `Params.from_mapping(values, source)` checks every field and raises a
 ParamError whose message is one line starting with `source` (usually the YAML file) and naming
-the key. Keys the dataclass does not declare are ignored: the hopper's parameters live at the
-root namespace, next to everything else on the parameter server.
+the key. Keys the dataclass does not declare are ignored on the parameter server (the hopper's
+parameters live at the root namespace, next to everything else there), and refused in a config file
+(`strict=True`: a typo is never silently a default), but for the ones a params type declares in its
+`TOLERATED_KEYS` (the tutorials' unused keys, kept in our YAML files as the tutorials wrote them).
 """
 from __future__ import annotations
 
@@ -14,7 +16,7 @@ import math
 import typing
 from collections.abc import Mapping
 from dataclasses import MISSING, dataclass, field
-from typing import Any, TypeVar
+from typing import Any, ClassVar, TypeVar
 
 import yaml
 
@@ -93,13 +95,37 @@ def _build(cls: type[Any], values: Mapping[str, Any], source: str, prefix: str) 
     return cls(**kwargs)
 
 
+def _unknown_keys(cls: type[Any], values: Mapping[str, Any], prefix: str) -> list[str]:
+    """The keys of `values` (nested ones as a/b) that `cls` neither declares nor tolerates."""
+    hints = typing.get_type_hints(cls)
+    fields = {f.name for f in dataclasses.fields(cls)}
+    unknown = []
+    for key, value in values.items():
+        if key not in fields:
+            if key not in getattr(cls, "TOLERATED_KEYS", ()):
+                unknown.append(f"{prefix}{key}")
+            continue
+        kind = hints[key]
+        if isinstance(kind, type) and dataclasses.is_dataclass(kind) and isinstance(value, Mapping):
+            unknown.extend(_unknown_keys(kind, value, f"{prefix}{key}/"))
+    return unknown
+
+
 class Params:
     """Base of the parameter dataclasses (declare them @dataclass(frozen=True, kw_only=True))."""
 
+    TOLERATED_KEYS: ClassVar[tuple[str, ...]] = ()  # keys a config file may hold that nothing reads
+
     @classmethod
-    def from_mapping(cls: type[P], values: Mapping[str, Any], source: str) -> P:
-        """Validate a nested mapping (as rosparam or YAML give it); ParamError names the key and `source`."""
+    def from_mapping(cls: type[P], values: Mapping[str, Any], source: str, strict: bool = False) -> P:
+        """Validate a nested mapping (as rosparam or YAML give it); ParamError names the key and `source`.
+        `strict` (a config file): a key the dataclass does not declare (nor tolerate) is refused too."""
         params = _build(cls, values, source, "")
+        unknown = _unknown_keys(cls, values, "") if strict else []
+        if unknown:
+            known = ", ".join(f.name for f in dataclasses.fields(cls))  # type: ignore[arg-type]
+            raise ParamError(f"{source}: unknown parameter '{unknown[0]}'"
+                             f"{f' (and {len(unknown) - 1} more)' if len(unknown) > 1 else ''} (known: {known})")
         params.check(source)
         return params
 

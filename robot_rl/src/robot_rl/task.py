@@ -131,16 +131,18 @@ class TaskSpec(Generic[P]):
     def config_path(self) -> Path:
         return package_path(self.package) / "config" / f"{self.name}.yaml"
 
-    def params_from_document(self, document: Mapping[str, Any], source: str) -> P:
-        """The params of a YAML document laid out as on the parameter server (under params_namespace)."""
+    def params_from_document(self, document: Mapping[str, Any], source: str, strict: bool = False) -> P:
+        """The params of a YAML document laid out as on the parameter server (under params_namespace); `strict`:
+        a key under it that the params do not declare is refused (Params.from_mapping)."""
         values: Any = document
         for part in self.params_namespace.strip("/").split("/"):
             if part:
                 values = values.get(part, {}) if isinstance(values, Mapping) else {}
-        return self.params_type.from_mapping(values, source)
+        return self.params_type.from_mapping(values, source, strict=strict)
 
     def load_params(self, path: Path) -> P:
-        return self.params_from_document(load_yaml_file(path), str(path))
+        """The params of a config file, every key of it known (ParamError naming an unknown one and the file)."""
+        return self.params_from_document(load_yaml_file(path), str(path), strict=True)
 
     def default_params(self) -> P:
         return self.load_params(self.config_path)

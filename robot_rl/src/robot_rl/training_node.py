@@ -118,8 +118,8 @@ def _read_node_params() -> NodeParams:
 
 def _read_params(task: TaskSpec[Any], node: NodeParams) -> TaskParams:
     config_file = node.config_file
-    if Path(config_file).is_file():
-        load_yaml_file(config_file)  # rosparam keeps the last of two equal keys; a strict loader refuses them
+    if Path(config_file).is_file():  # rosparam keeps the last of two equal keys and every unknown one: refused here
+        task.params_from_document(load_yaml_file(config_file), config_file, strict=True)
     namespace = task.params_namespace
     params = task.params_type.from_mapping(rospy.get_param(namespace, {}), f"{config_file} ({namespace.rstrip('/')}/)")
     overrides = _private(("nepisodes", "seed"))
@@ -239,6 +239,11 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
         return _fail(f"cluster:={node.cluster} needs {error.name}, which is not installed: ./ws setup distributed")
     except ValueError as error:  # params the env refuses (e.g. a running_step of more physics steps than a step takes)
         return _fail(f"{node.config_file}: {error}")
+    try:  # before the run folder: an agent that cannot train this task (or whose buffer cannot fit) writes nothing
+        agent.check_fit(env, agent_params, f"agent {agent.name} on {task.env_id}")
+    except ParamError as error:
+        _close_quietly(env)
+        return _fail(str(error))
     results_name, checkpoint_name = agent.results_name(task), agent.checkpoint_name
     run: RunDirectory | None = None
     trainer: Trainer | None = None

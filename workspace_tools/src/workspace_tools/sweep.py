@@ -24,19 +24,25 @@ sweep's folder DIR/<results name>/<SWEEP>/ (SWEEP: name:=, else the UTC time):
 The run folders are the source of truth: a trial whose folder holds a completed summary.json and
 evaluation.json is done; one with a checkpoint continues from it (resume:=true of the training node:
 episodes after the checkpoint are dropped and re-run, none repeated or lost); one without a checkpoint
-starts anew. So a failed trial (Tune retries it up to max_failures times) and an interrupted sweep
-(`resume:=true name:=SWEEP`, which runs the trials not done) go on where their runs' checkpoints are.
+starts anew (removed under the run's lock only: never while a training holds it). So a failed trial (Tune
+retries it up to max_failures times) and an interrupted sweep (`resume:=true name:=SWEEP`, which runs the
+trials not done, found by its name under every results folder of DIR) go on where their runs' checkpoints
+are. The driver holds the sweep's lock (<sweep>/.lock) for its life: a second driver of it stops in one line.
+A new sweep is checked whole (its trials, at most sweep_spec.MAX_TRIALS; the agent on each distinct env)
+before its folder is made, and a start that fails after removes it.
 One line per finished trial, with an ETA. Ray runs on this machine (a private temp dir, no dashboard, no
 usage statistics; Ray 2.60 listens on every interface whatever address it is given, and a local instance
 has its token authentication on, its default: docs/guide/distributed.md) unless cluster:=ADDRESS names a
 running cluster. Every ROS master and sim node of a trial is on 127.0.0.1.
-Exit codes: 0 every trial done, 1 a trial failed (the table has the others), 2 bad arguments, 130
-interrupted.
+Exit codes: 0 every trial done, 1 a trial failed (the table has the others) or another driver runs the
+sweep, 2 bad arguments, 130 interrupted.
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import datetime
+import fcntl
 import importlib
 import json
 import logging
@@ -47,12 +53,10 @@ import shutil
 import subprocess
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-
-import yaml
 
 from robot_rl import (
     ClusterError,
@@ -63,18 +67,17 @@ from robot_rl import (
     prepare_child,
     stop_process,
     write_json_atomic,
-    write_text_atomic,
 )
-from workspace_tools import sweep_spec
 from workspace_tools.processes import launch_args
 from workspace_tools.robots import robot_of_package
-from workspace_tools.sweep_spec import SweepError, SweepSpec, Trial, format_value, parse_sweep, trial_config
+from workspace_tools.sweep_folder import RESULTS_LINK, SweepLockedError, agent_config_file, open_sweep
+from workspace_tools.sweep_spec import SweepError, SweepSpec, Trial, format_value, parse_sweep
 from workspace_tools.sweep_table import TrialResult, plot_curves, write_table
 
 INTERRUPTED = 130
 TRIAL_TIMEOUT_S = 24 * 3600.0   # one training run, at most
-RESULTS_LINK = ".results"       # <sweep>/.results/<results name> -> <sweep>: the trials' results_dir
 LOG_TAIL_CHARS = 2000
+LOCK_FILE = ".lock"             # each trial's <trial>/.lock: robot_rl's run lock
 
 
 def _log(message: str) -> None:
@@ -125,12 +128,29 @@ def trial_done(job: TrialJob) -> bool:
     return bool(summary and summary.get("completed")) and (job.run_dir / "evaluation.json").is_file()
 
 
+@contextlib.contextmanager
+def _run_locked(job: TrialJob) -> Iterator[None]:
+    """The trial's run lock (robot_rl's flock on <run>/.lock, which every training of the run holds) while the
+    block runs; RuntimeError naming the run if a training process holds it."""
+    fd = os.open(job.run_dir / LOCK_FILE, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise RuntimeError(f"trial {job.name}: another process is training its run {job.run_dir} (it holds "
+                               f"{job.run_dir / LOCK_FILE}); nothing of it was changed") from None
+        yield
+    finally:
+        os.close(fd)
+
+
 def _train(job: TrialJob) -> None:
     """Train the trial's run to its end: anew, or on from its checkpoint (as ./ws run ... resume:=true)."""
     run = job.run_dir
     resume = (run / job.checkpoint_name).is_file()
     if run.exists() and not resume:
-        shutil.rmtree(run)  # it ended before its first checkpoint: nothing in it counts, start anew
+        with _run_locked(job):  # never under a training that still writes it
+            shutil.rmtree(run)  # it ended before its first checkpoint: nothing in it counts, start anew
     job.log_dir.mkdir(parents=True, exist_ok=True)
     env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{free_port()}", ROS_HOSTNAME="127.0.0.1",
                ROS_IP="127.0.0.1", ROS_LOG_DIR=str(job.log_dir), ROS_HOME=str(job.log_dir))
@@ -249,64 +269,14 @@ def _tune_callback(progress: Progress) -> Any:
     return ProgressCallback()
 
 
-def _agent_config_file(sweep_dir: Path, trial: Trial) -> Path:
-    return sweep_dir / "configs" / f"{trial.name}.agent.yaml"
-
-
 def _jobs(spec: SweepSpec, sweep_dir: Path, trials: Sequence[Trial]) -> list[TrialJob]:
     has_config = spec.agent.params is not None
     return [TrialJob(name=t.name, seed=t.seed, params={k: (t.changes | t.agent_changes)[k] for k in spec.varied},
                      sweep_dir=str(sweep_dir), package=spec.package, task=spec.task.name, agent=spec.agent.name,
                      results_name=spec.agent.results_name(spec.task), checkpoint_name=spec.agent.checkpoint_name,
                      eval_episodes=spec.eval_episodes, eval_seed=spec.eval_seed,
-                     agent_config=str(_agent_config_file(sweep_dir, t)) if has_config else "",
+                     agent_config=str(agent_config_file(sweep_dir, t)) if has_config else "",
                      max_steps=spec.max_steps) for t in trials]
-
-
-def _open_sweep(spec: SweepSpec) -> tuple[SweepSpec, Path]:
-    """The sweep's folder, made (new) or checked (resume:=true; the saved arguments define the trials)."""
-    root = Path(spec.results_dir).expanduser().resolve() / spec.agent.results_name(spec.task)
-    if spec.resume:
-        if not spec.name:
-            raise SweepError("resume:=true needs the sweep's name:= (the folder under "
-                             f"{root})")
-        sweep_dir = root / spec.name
-        saved = yaml.safe_load((sweep_dir / "sweep.yaml").read_text()) if (sweep_dir / "sweep.yaml").is_file() \
-            else None
-        if not isinstance(saved, dict) or not isinstance(saved.get("args"), list):
-            raise SweepError(f"no sweep {spec.name!r} to resume under {root} (no {sweep_dir / 'sweep.yaml'})")
-        given = list(spec.grid_args)
-        if given != saved["args"] and given != [spec.robot]:
-            raise SweepError(f"sweep {spec.name} was started with {' '.join(saved['args'])}; resume:=true continues "
-                             f"those trials (give just name:= and resume:=true)")
-        options = [f"{k}:={v}" for k, v in (("name", spec.name), ("resume", "true"), ("cluster", spec.cluster),
-                                            ("concurrent", spec.concurrent), ("results_dir", spec.results_dir)) if v]
-        return parse_sweep([*saved["args"], *options]), sweep_dir
-    name = spec.name or datetime.datetime.now(datetime.UTC).strftime("%Y%m%d-%H%M%S")
-    sweep_dir = root / name
-    try:
-        sweep_dir.mkdir(parents=True)
-    except FileExistsError:
-        raise SweepError(f"a sweep {sweep_dir} exists already: resume:=true name:={name} continues it; a new sweep "
-                         f"needs another name:=") from None
-    spec = dataclasses.replace(spec, name=name)
-    trials = spec.trials()
-    agent_config = spec.agent.config_for(spec.task)  # the trials' agent configs start from it
-    (sweep_dir / "configs").mkdir()
-    for trial in trials:
-        write_text_atomic(sweep_dir / "configs" / f"{trial.name}.yaml",
-                          yaml.safe_dump(trial_config(spec.task, trial, spec.max_steps), sort_keys=False))
-        agent_document = sweep_spec.trial_agent_config(spec.agent, spec.task, trial)
-        if agent_document is not None:
-            write_text_atomic(_agent_config_file(sweep_dir, trial), yaml.safe_dump(agent_document, sort_keys=False))
-    (sweep_dir / RESULTS_LINK).mkdir()
-    (sweep_dir / RESULTS_LINK / spec.agent.results_name(spec.task)).symlink_to("..")
-    write_text_atomic(sweep_dir / "sweep.yaml", yaml.safe_dump(
-        {"args": list(spec.grid_args), "task": spec.task.env_id, "agent": spec.agent.name,
-         "agent_config": None if agent_config is None else str(agent_config), "max_steps": spec.max_steps or None,
-         "seeds": list(spec.seeds), "params": {k: list(v) for k, v in spec.grid},
-         "trials": [t.name for t in trials]}, sort_keys=False))
-    return spec, sweep_dir
 
 
 def _start_ray(spec: SweepSpec, temp_dir: Path) -> None:
@@ -382,7 +352,10 @@ def main(argv: Sequence[str]) -> int:
         print(__doc__)
         return 0
     try:
-        spec, sweep_dir = _open_sweep(parse_sweep(argv))
+        spec, sweep_dir = open_sweep(parse_sweep(argv))
+    except SweepLockedError as error:
+        _log(f"error: {error}")
+        return 1
     except (SweepError, OSError) as error:
         _log(f"error: {error}")
         return 2

@@ -22,6 +22,7 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import itertools
+import math
 import re
 import typing
 from collections.abc import Sequence
@@ -39,6 +40,7 @@ from robot_rl import (
     find_agent,
     find_task,
     load_yaml_file,
+    make_env,
     parse_scalar,
 )
 from workspace_tools.robots import DEFAULT_ROBOT, ROBOTS
@@ -50,6 +52,7 @@ SWEEP_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
 UNSAFE = re.compile(r"[^A-Za-z0-9._+=,-]")
 SCALARS = (bool, int, float, str)
 EXPONENT = re.compile(r"[-+]?\d+(\.\d*)?[eE][-+]?\d+")
+MAX_TRIALS = 1000  # trials in one sweep at most: each is a whole training run
 
 
 class SweepError(ValueError):
@@ -141,10 +144,15 @@ def parse_seeds(text: str) -> tuple[int, ...]:
             raise SweepError(f"seeds:={text}: the range {item.strip()} ends before it starts")
         if last > MAX_SEED:
             raise SweepError(f"seeds:={text}: seeds go from 0 to {MAX_SEED}")
+        if len(seeds) + last - first + 1 > MAX_TRIALS:
+            raise SweepError(f"seeds:={text}: more than {MAX_TRIALS} seeds, a sweep's most trials (each is a whole "
+                             f"training run)")
         seeds.extend(range(first, last + 1))
-    duplicates = sorted({s for s in seeds if seeds.count(s) > 1})
-    if duplicates:
-        raise SweepError(f"seeds:={text}: seed {duplicates[0]} is given twice")
+    seen: set[int] = set()
+    for seed in seeds:
+        if seed in seen:
+            raise SweepError(f"seeds:={text}: seed {seed} is given twice")
+        seen.add(seed)
     return tuple(seeds)
 
 
@@ -266,8 +274,39 @@ def parse_sweep(argv: Sequence[str]) -> SweepSpec:
         eval_episodes=_integer("eval_episodes", given.get("eval_episodes", "20"), 1),
         eval_seed=_integer("eval_seed", given.get("eval_seed", "0"), 0),
         results_dir=given.get("results_dir", "training_results"))
+    count = len(spec.seeds) * math.prod(len(values) for _, values in spec.grid)
+    if count > MAX_TRIALS:
+        raise SweepError(f"{count} trials ({len(spec.seeds)} seeds x "
+                         f"{' x '.join(f'{len(v)} {k}' for k, v in spec.grid if len(v) > 1) or '1'}): a sweep has at "
+                         f"most {MAX_TRIALS} trials (each is a whole training run)")
     spec.trials()  # every combination checked now, before anything runs
     return spec
+
+
+def check_agent_fits(spec: SweepSpec, trials: Sequence[Trial]) -> None:
+    """SweepError in one line when the agent cannot train a trial's env (its actions' kind, a buffer beyond the
+    memory): the env of each distinct set of the trials' task params is made in-process to ask (AgentSpec.check_fit,
+    as the training node asks before its run folder)."""
+    defaults = spec.task.default_params()
+    agent_defaults = agent_default_params(spec.agent, spec.task) if spec.agent.params is not None else None
+    source = f"agent {spec.agent.name} on {spec.task.env_id}"
+    checked: set[tuple[str, str]] = set()
+    for trial in trials:
+        key = (repr(sorted(trial.changes.items())), repr(sorted(trial.agent_changes.items())))
+        if key in checked:
+            continue
+        checked.add(key)
+        try:
+            params = defaults.with_changes(trial.name, **trial.changes)
+            agent_params = None if agent_defaults is None else agent_defaults.with_changes(trial.name,
+                                                                                           **trial.agent_changes)
+            env = make_env(spec.task, params=params, backend="direct")
+            try:
+                spec.agent.check_fit(env, agent_params, source)
+            finally:
+                env.close()
+        except (ParamError, ValueError) as error:  # ValueError: params the env refuses
+            raise SweepError(str(error)) from None
 
 
 def trial_config(task: TaskSpec[Any], trial: Trial, max_steps: int = 0) -> dict[str, Any]:

@@ -18,6 +18,7 @@ from ..params import MonopedParams
 from ..robot import CONTACT_SENSOR, CONTROLLERS, IMU_SENSOR, ODOMETRY_SENSOR, base_rpy, contact_force
 from .base import MonopedBaseEnv, monoped_metrics
 
+MAX_CONTROL_PERIOD_S = 0.005               # s: the longest running_step the hop cycle's controller works at
 MIN_SPEED = 1e-3                            # m/s: below this the velocity has no direction
 VELOCITY_WINDOW = 5                         # readings: the velocity at a decision point is their mean
 STANCE_PHASES = (Phase.LOADING, Phase.COMPRESSION, Phase.THRUST, Phase.UNLOADING)
@@ -27,6 +28,9 @@ STANCE_PHASES = (Phase.LOADING, Phase.COMPRESSION, Phase.THRUST, Phase.UNLOADING
 class HopCycleParams(MonopedParams):
     """The params of the tasks whose step is one hop of the controller's cycle (hop_in_place, the residual tasks)."""
 
+    running_step: float = param(low=0.0, low_open=True, high=MAX_CONTROL_PERIOD_S,
+                                doc="s: the controller's control period (at most 5 ms: it keeps the robot up to "
+                                    "5 ms and falls from 10 ms, docs/research/2026-11-25-hop-stages.md)")
     speed_weight: float = param(low=0.0, doc="reward per hop: minus this x the speed error (m/s) at the decision point")
     max_hop_s: float = param(low=0.1, high=5.0, doc="s: a step ends after this without a lift-off")
     neutral_point: bool = param(default=True, doc="the controller's neutral point v T_s / 2 (false: the agent's too)")

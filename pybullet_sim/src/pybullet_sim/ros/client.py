@@ -19,6 +19,7 @@ from typing import Any, Generic, TypeVar
 import numpy as np
 import rosgraph
 import rospy
+from rospy.exceptions import TransportException
 from std_msgs.msg import Float64
 from std_srvs.srv import Empty
 
@@ -255,19 +256,31 @@ class SimConnection:
             self._sim_uri = service_provider(STEP_PACKED_SERVICE, timeout)
         except (OSError, xmlrpc.client.Error):
             self._sim_uri = None
+        self._lost: str | None = None  # why the sim node this connection was made with is lost (gone, restarted)
 
     def _failed(self, name: str, proxy: rospy.ServiceProxy, error: Exception) -> SimConnectionError:
+        """The one-line error of a failed call. A connection that broke is dropped (rospy would send the next
+        request on its closed socket: TransportTerminated, then an AttributeError); a sim that is gone or was
+        restarted is remembered: every later call fails at once with the same line, never on another sim."""
+        if ANSWERED_WITH_AN_ERROR not in str(error):  # the connection, not the request: the next call reconnects
+            transport, proxy.transport = proxy.transport, None
+            if transport is not None:
+                transport.close()
         if self._watchdog.expired is proxy:
             return SimConnectionError(f"service {name} did not answer within {self.timeout} s: the sim node is "
                                       f"frozen or overloaded (is it stopped, or stepping a huge request?)")
-        return SimConnectionError(f"service {name} failed: {self._what_became_of_the_sim(error)}")
+        reason, lost = self._what_became_of_the_sim(error)
+        if lost:
+            self._lost = reason
+        return SimConnectionError(f"service {name} failed: {reason}")
 
-    def _what_became_of_the_sim(self, error: Exception) -> str:
-        """After a call failed with `error`: whether the sim node is gone or was restarted, as the master tells.
-        A dying node may still accept connections for a moment after its sockets broke: looked at again for up
-        to LOST_SIM_WAIT seconds before the error is given as it is."""
+    def _what_became_of_the_sim(self, error: Exception) -> tuple[str, bool]:
+        """After a call failed with `error`: whether the sim node is gone or was restarted, as the master tells
+        (the reason, and whether the sim is lost to this connection). A dying node may still accept connections
+        for a moment after its sockets broke: looked at again for up to LOST_SIM_WAIT seconds before the error
+        is given as it is."""
         if ANSWERED_WITH_AN_ERROR in str(error):  # the sim is there: it refused the request
-            return f"{error}; {self.hint}"
+            return f"{error}; {self.hint}", False
         deadline = time.monotonic() + min(self.timeout, LOST_SIM_WAIT)
         while True:
             try:
@@ -277,21 +290,23 @@ class SimConnection:
             if uri is None or (uri == self._sim_uri and not _accepts_connections(uri, LOST_SIM_WAIT)):
                 # a killed node stays registered with the master until another takes its name
                 return (f"the sim node is gone (nothing serves {STEP_PACKED_SERVICE} any more: was it killed? see "
-                        f"its log); {self.hint}")
+                        f"its log); {self.hint}"), True
             if self._sim_uri is not None and uri != self._sim_uri:
                 return (f"the sim node was restarted (it serves {STEP_PACKED_SERVICE} at {uri} now, at "
                         f"{self._sim_uri} before): a restarted sim starts over (sim time 0, the robot at its spawn "
                         f"pose, its params read again), so this connection cannot go on with it; a new env connects "
-                        f"to the new sim")
+                        f"to the new sim"), True
             if time.monotonic() > deadline:
-                return f"{error}; {self.hint}"
+                return f"{error}; {self.hint}", False
             time.sleep(0.05)
 
     def _call(self, name: str, proxy: rospy.ServiceProxy, request: Any = None) -> Any:
+        if self._lost is not None:  # the sim this connection was made with is gone or was restarted
+            raise SimConnectionError(f"service {name} failed: {self._lost}")
         self._watchdog.start(proxy)
         try:
             return proxy() if request is None else proxy(request)
-        except (rospy.ServiceException, rospy.ROSException) as error:
+        except (rospy.ServiceException, rospy.ROSException, TransportException) as error:
             raise self._failed(name, proxy, error) from None
         finally:
             self._watchdog.end()

@@ -59,6 +59,8 @@ class AgentSpec:
     vector_env: str
     policy: str
     params: str | None = None        # None: the agent's params are the task's
+    fit: str = ""                    # "module:attr" of check_fit(action_space, observation_space, n_envs,
+                                     # agent_params, source): ParamError when the agent cannot train such envs
 
     def results_name(self, task: TaskSpec[Any]) -> str:
         return task.results_name + self.results_suffix
@@ -82,16 +84,26 @@ class AgentSpec:
         return tuned if tuned is not None and tuned.is_file() else self.config_path
 
     def load_params(self, path: Path | None = None) -> Params | None:
-        """The agent's params from `path` (default: config_path); ParamError names the key. May raise
-        ModuleNotFoundError when the agent needs requirements-deep.txt and it is not installed."""
+        """The agent's params from `path` (default: config_path); ParamError names the key (an unknown one too).
+        May raise ModuleNotFoundError when the agent needs requirements-deep.txt and it is not installed."""
         default = self.config_path
         if default is None:
             return None
         path = path or default
-        return self.load_params_from(load_yaml_file(path), str(path))
+        return self.load_params_from(load_yaml_file(path), str(path), strict=True)
 
-    def load_params_from(self, values: Any, source: str) -> Params | None:
-        return None if self.params is None else _resolve(self.params).from_mapping(values, source)
+    def load_params_from(self, values: Any, source: str, strict: bool = False) -> Params | None:
+        """The agent's params from a mapping; `strict` (a config file): an unknown key is refused too."""
+        return None if self.params is None else _resolve(self.params).from_mapping(values, source, strict=strict)
+
+    def check_fit(self, env: Any, agent_params: Params | None, source: str) -> None:
+        """ParamError in one line when this agent cannot train `env` (one env or N; its actions' kind, or a buffer
+        beyond the memory): asked before a run folder is made, so a misfit writes nothing."""
+        if not self.fit:
+            return
+        action_space = getattr(env, "single_action_space", env.action_space)
+        observation_space = getattr(env, "single_observation_space", env.observation_space)
+        _resolve(self.fit)(action_space, observation_space, getattr(env, "num_envs", 1), agent_params, source)
 
     def make_vector_env(self, task: TaskSpec[Any], n: int, backend: str, seed: int, params: TaskParams,
                         ros_timeout: float, cluster: str | None = None) -> Any:
@@ -117,16 +129,19 @@ AGENTS: dict[str, AgentSpec] = {spec.name: spec for spec in (
     AgentSpec("qlearn", "tabular Q-learning, the tutorials'", QTABLE_CHECKPOINT, "", needs_deep=False,
               trainer="robot_rl.agents.qlearn.vector_trainer:make_trainer",
               vector_env="robot_rl.workers.vector_env:make_vector_env",
-              policy="robot_rl.agents.qlearn.policy:greedy_policy"),
+              policy="robot_rl.agents.qlearn.policy:greedy_policy", fit="robot_rl.agents.qlearn.trainer:check_fit"),
     AgentSpec("dqn", "Stable-Baselines3's DQN", DEEP_CHECKPOINT, "-dqn", needs_deep=True,
               trainer="robot_rl.agents.sb3.trainer:make_trainer", vector_env="robot_rl.agents.sb3.vec_env:make_vec_env",
-              policy="robot_rl.agents.sb3.policy:greedy_policy", params="robot_rl.agents.sb3.params:DqnParams"),
+              policy="robot_rl.agents.sb3.policy:greedy_policy", params="robot_rl.agents.sb3.params:DqnParams",
+              fit="robot_rl.agents.sb3.params:check_fit"),
     AgentSpec("ppo", "Stable-Baselines3's PPO", DEEP_CHECKPOINT, "-ppo", needs_deep=True,
               trainer="robot_rl.agents.sb3.trainer:make_trainer", vector_env="robot_rl.agents.sb3.vec_env:make_vec_env",
-              policy="robot_rl.agents.sb3.policy:greedy_policy", params="robot_rl.agents.sb3.params:PpoParams"),
+              policy="robot_rl.agents.sb3.policy:greedy_policy", params="robot_rl.agents.sb3.params:PpoParams",
+              fit="robot_rl.agents.sb3.params:check_fit"),
     AgentSpec("sac", "Stable-Baselines3's SAC, for continuous actions", DEEP_CHECKPOINT, "-sac", needs_deep=True,
               trainer="robot_rl.agents.sb3.trainer:make_trainer", vector_env="robot_rl.agents.sb3.vec_env:make_vec_env",
-              policy="robot_rl.agents.sb3.policy:greedy_policy", params="robot_rl.agents.sb3.params:SacParams"),
+              policy="robot_rl.agents.sb3.policy:greedy_policy", params="robot_rl.agents.sb3.params:SacParams",
+              fit="robot_rl.agents.sb3.params:check_fit"),
 )}
 
 

@@ -129,10 +129,15 @@ class RunDirectory:
         """Make a new run directory and point `latest` at it.
 
         Default name: UTC "%Y%m%d-%H%M%S", with "-1", "-2", ... appended if taken. An explicit
-        `run_name` that already exists raises FileExistsError (a run is never overwritten).
+        `run_name` that already exists raises FileExistsError (a run is never overwritten); a `latest` that is
+        not a symlink, ValueError naming it, before anything is made.
         """
         _check_name("robot", robot)
         robot_dir = Path(root) / robot
+        latest = robot_dir / LATEST
+        if latest.exists() and not latest.is_symlink():  # checked before the run folder: nothing left behind
+            raise ValueError(f"{latest} is a {'folder' if latest.is_dir() else 'file'}, not the link to the newest "
+                             f"run kept there: move it away (nothing was written)")
         robot_dir.mkdir(parents=True, exist_ok=True)
         if run_name is not None:
             _check_name("run", run_name)

@@ -20,13 +20,21 @@ from typing import Any
 
 import gymnasium
 
-from ...params import TaskParams
+from ...params import ParamError, Params, TaskParams, load_yaml_file
 from ...runs.ledger import DEFAULT_HOOKS, Learner, RunLedger, TrainingHooks, TrainingState, restored_state
 from ...runs.results import EpisodeRecord, RunDirectory
 from ...task import Episode, TaskSpec, episode_duration
 from .qlearn import QLearn
 
 CHECKPOINT_FORMAT = "robot_rl.training_checkpoint/2"
+
+
+def check_fit(action_space: gymnasium.spaces.Space[Any], observation_space: gymnasium.spaces.Space[Any], n_envs: int,
+              agent_params: Params | None, source: str) -> None:
+    """The agent registry's fit check of tabular Q-learning: Discrete actions (ParamError in one line)."""
+    if not isinstance(action_space, gymnasium.spaces.Discrete):
+        raise ParamError(f"{source}: tabular Q-learning needs Discrete actions, the task has {action_space} "
+                         f"(try agent:=sac or ppo; the monoped's action_mode targets is for the deep agents)")
 
 
 class QLearningTrainer(Learner):
@@ -69,7 +77,27 @@ class QLearningTrainer(Learner):
         initial_epsilon = checkpoint["initial_epsilon"]
         if not isinstance(initial_epsilon, (int, float)):
             raise ValueError(f"initial_epsilon {initial_epsilon!r} is not a number")
+        self._check_learning_params(qlearn, float(initial_epsilon))
         return qlearn, state, float(initial_epsilon)
+
+    def _check_learning_params(self, qlearn: QLearn, initial_epsilon: float) -> None:
+        """ValueError naming each learning param whose value differs from the run's, as DeepTrainer refuses changed
+        agent params: the checkpoint's Q-learner's (alpha, gamma, the initial epsilon, ...) and params.yaml's
+        epsilon_discount and epsilon_min. nepisodes (a run trained further) and the rest may change."""
+        params = self.params
+        there: dict[str, Any] = {"alpha": qlearn.alpha, "gamma": qlearn.gamma, "epsilon": initial_epsilon,
+                                 "exploration": qlearn.exploration, "q_init": qlearn.q_init,
+                                 "first_visit": qlearn.first_visit}
+        try:
+            began = load_yaml_file(self.run.params_yaml)
+        except ParamError:
+            began = {}
+        there.update({key: began[key] for key in ("epsilon_discount", "epsilon_min") if key in began})
+        differ = ", ".join(f"{key} {value!r} there, {getattr(params, key)!r} here" for key, value in there.items()
+                           if value != getattr(params, key))
+        if differ:
+            raise ValueError(f"its learning params differ from this run's ({differ}): resume with the params the run "
+                             "began with")
 
     def save_checkpoint(self) -> None:
         self.run.checkpoint({"format": CHECKPOINT_FORMAT, "task": self.task.env_id, "episode": self.state.episode,

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import gymnasium
+import numpy as np
 from stable_baselines3 import DQN, PPO, SAC
 from stable_baselines3.common.base_class import BaseAlgorithm
 
@@ -155,3 +156,15 @@ class SacParams(NetworkParams):
 
     def policy_kwargs(self, network: list[int]) -> dict[str, Any]:
         return {"net_arch": network}
+
+
+def check_fit(action_space: gymnasium.spaces.Space[Any], observation_space: gymnasium.spaces.Space[Any], n_envs: int,
+              agent_params: Params | None, source: str) -> None:
+    """The agent registry's fit check of a deep agent: its algorithm acts in `action_space`, and its buffer fits the
+    memory available (ParamError in one line)."""
+    assert isinstance(agent_params, NetworkParams)
+    agent_params.check_action_space(action_space, source)
+    try:
+        agent_params.check_memory(int(np.prod(observation_space.shape or (1,))), n_envs)
+    except ValueError as error:
+        raise ParamError(f"{source}: {error}") from None
