@@ -1,7 +1,7 @@
 """The monoped hopper's training: the Monoped-v0 (stay up), MonopedHop-v0, MonopedHopInPlace-v0 (hop in place,
 one decision per hop; MonopedHopLevel-v0 is its former id, registered as an alias) and the residual
-(MonopedResidualInPlace-v0, MonopedResidualForward-v0: a deep agent's residual on the hopping controller) tasks, and MonopedEndToEnd-v0 (a
-learned policy alone sets the joint targets every 5 ms).
+(MonopedResidualInPlace-v0, MonopedResidualForward-v0: a deep agent's residual on the hopping controller) tasks,
+and MonopedEndToEnd-v0 (a learned policy alone sets the joint targets every 5 ms).
 
 Importing this package registers them with gymnasium:
 `gymnasium.make("Monoped-v0", backend="ros" | "direct")`.
