@@ -73,7 +73,8 @@ def push_schedule(seed: int, episode: int, horizon_s: float) -> list[tuple[float
     """The pushes of an episode: (sim seconds after its start, heading in rad of the world xy plane), the gaps
     uniform in PUSH_GAP_S, drawn from (seed, episode) alone: the same arguments, the same pushes."""
     rng = np.random.default_rng([seed, episode])
-    pushes, t = [], 0.0
+    pushes: list[tuple[float, float]] = []
+    t = 0.0
     while True:
         t += float(rng.uniform(*PUSH_GAP_S))
         if t >= horizon_s:
@@ -120,7 +121,8 @@ class Pushes(gymnasium.Wrapper[Any, Any, Any, Any]):
     def __init__(self, env: Any, speed: float, seed: int, horizon_s: float):
         super().__init__(env)
         self.speed, self.seed, self.horizon_s = speed, seed, horizon_s
-        self.episode, self.pushes, self.start = -1, [], 0.0
+        self.episode, self.start = -1, 0.0
+        self.pushes: list[tuple[float, float]] = []
 
     def reset(self, **kwargs: Any) -> Any:
         observation, info = self.env.reset(**kwargs)
@@ -130,7 +132,7 @@ class Pushes(gymnasium.Wrapper[Any, Any, Any, Any]):
         return observation, info
 
     def step(self, action: Any) -> Any:
-        readings = self.env.unwrapped.readings
+        readings = getattr(self.env.unwrapped, "readings", None)
         if self.pushes and readings is not None and readings.stamp - self.start >= self.pushes[0][0]:
             _, heading = self.pushes.pop(0)
             kick_base(self.env, (self.speed * math.cos(heading), self.speed * math.sin(heading)))
