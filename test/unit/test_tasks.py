@@ -19,7 +19,7 @@ IDS = [task.env_id for task in ALL_TASKS]
 
 def test_the_tasks_are_registered():
     assert IDS == ["MovingCubeOneDiskWalk-v0", "Monoped-v0", "MonopedHop-v0", "MonopedHopInPlace-v0",
-                   "MonopedResidualInPlace-v0", "MonopedResidualForward-v0"]
+                   "MonopedResidualInPlace-v0", "MonopedResidualForward-v0", "MonopedEndToEnd-v0"]
     assert all(TASKS[env_id] is task for env_id, task in zip(IDS, ALL_TASKS))
     assert find_task(hopper_training.TASKS, "hop").env_id == "MonopedHop-v0"
     assert find_task(hopper_training.TASKS, "hop_in_place").env_id == "MonopedHopInPlace-v0"

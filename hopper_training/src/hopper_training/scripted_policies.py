@@ -9,6 +9,7 @@ from robot_rl import ConstantAction, ScriptedPolicy, TaskSpec, random_actions
 
 from .controller.policy import ControllerPolicy
 from .controller.policy import controller_params as step_controller_params
+from .envs.end_to_end import END_TO_END
 from .envs.hop_cycle import controller_params as hop_cycle_controller_params
 from .envs.hop_in_place import HOP_IN_PLACE, HopInPlaceParams, do_nothing_action
 from .envs.residual_forward import RESIDUAL_FORWARD
@@ -41,7 +42,9 @@ def zero_residual(env: Any, speed: float) -> Any:
 
 def controller_params(task: TaskSpec[Any], params: Any) -> Any:
     """--policy controller's params: the hop-cycle tasks' with the controller's own laws on, the others' in
-    action_mode targets at the control period."""
+    action_mode targets at the control period; end_to_end's as they are (targets at 5 ms: the teacher's period)."""
+    if task is END_TO_END:
+        return params
     if task in HOP_CYCLE_TASKS:
         return hop_cycle_controller_params(params)
     return step_controller_params(task, params)

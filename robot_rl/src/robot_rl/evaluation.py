@@ -1,7 +1,8 @@
 """Evaluate a trained run: its greedy policy, then a uniformly random one, on the run's own task.
 
   evaluate.py --qtable RUN [--episodes N] [--horizon-s S] [--backend direct|ros] [--seed S]
-              [--initial-tilt LOW HIGH] [--video PATH.mp4 [--video-episodes N] [--video-size WxH] [--slow-motion K]]
+              [--initial-tilt LOW HIGH] [--push V] [--video PATH.mp4 [--video-episodes N] [--video-size WxH]
+              [--slow-motion K]]
   evaluate.py --policy NAME [--task TASK] [--speed M_S] [the options above but --qtable and --video]
   evaluate.py --policy constant --action N [--task TASK] [the same options]
 
@@ -22,6 +23,9 @@ is [LOW, HIGH], or null for a task without it.
 params as that policy needs them; its JSON has "policy": NAME and NAME: {...} with the keys of "greedy".
 `--policy constant --action N`, on every robot, takes action N every step (a task with Discrete actions):
 the trivial baselines a learned policy must beat besides random ones; its JSON adds "action": N.
+`--push V` kicks the robot's base V m/s horizontally in a random direction at random times, one every 1-3 s of
+sim time (push_schedule: drawn from the evaluation seed and the episode's number), for every policy; the
+JSON adds "push": V.
 `--video` records the first `--video-episodes` (3) greedy episodes to an mp4 (robot_rl.runs.video: real
 time, or `--slow-motion K` times slower, at most 30 frames/s, from the robot's camera of its sim config) and
 adds "video": {"path", "episodes", "frames", "fps", "slow_motion"} to the JSON; recording changes none of the
@@ -40,14 +44,19 @@ import json
 import math
 import re
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+import gymnasium
 import numpy as np
+import rospy
 import yaml
 
+from gazebo_msgs.msg import ModelState
+from gazebo_msgs.srv import GetModelState, SetModelState
 from pybullet_sim.ros.client import SimConnectionError
+from pybullet_sim.urdf import parse_urdf_joints
 
 from .agents.registry import AgentSpec, agent_of, checkpoint_of
 from .envs.backends.base import SimStateError
@@ -64,6 +73,77 @@ MAX_VIDEO_SIDE = 4096
 MAX_SEED = 2**31 - 1      # as a training's seed:= (ROS's int, numpy's seed)
 MAX_HORIZON_S = 86400.0   # s of sim time per episode at most: a day
 EVAL_INITIAL_TILT = (0.02, 0.05)  # rad: evaluation episodes start leaning this much, where the task can
+PUSH_GAP_S = (1.0, 3.0)  # --push: the sim seconds between two pushes, drawn uniformly (one every 2 s on average)
+
+
+def push_schedule(seed: int, episode: int, horizon_s: float) -> list[tuple[float, float]]:
+    """The pushes of an episode: (sim seconds after its start, heading in rad of the world xy plane), the gaps
+    uniform in PUSH_GAP_S, drawn from (seed, episode) alone: the same arguments, the same pushes."""
+    rng = np.random.default_rng([seed, episode])
+    pushes: list[tuple[float, float]] = []
+    t = 0.0
+    while True:
+        t += float(rng.uniform(*PUSH_GAP_S))
+        if t >= horizon_s:
+            return pushes
+        pushes.append((t, float(rng.uniform(-np.pi, np.pi))))
+
+
+def kick_base(env: Any, velocity_change: tuple[float, float]) -> None:
+    """Add a horizontal velocity (m/s, world x and y) to the robot's base, its pose and joints as they are: the
+    direct backend through its World, over ROS through the sim's /gazebo/get_model_state and set_model_state."""
+    backend = env.unwrapped.backend
+    world = getattr(backend, "world", None)
+    if world is not None:
+        state = world.model_state()
+        vx, vy, vz = state.linear_velocity
+        world.set_model_state(replace(state, linear_velocity=(vx + velocity_change[0], vy + velocity_change[1], vz)))
+        return
+    urdf = env.unwrapped.task.robot.urdf_path
+    model = parse_urdf_joints(urdf.read_text(encoding="utf-8"), str(urdf))[0]
+    try:
+        for name in ("/gazebo/get_model_state", "/gazebo/set_model_state"):
+            rospy.wait_for_service(name, backend.timeout)
+        now = rospy.ServiceProxy("/gazebo/get_model_state", GetModelState)(model, "world")
+        now.twist.linear.x += velocity_change[0]
+        now.twist.linear.y += velocity_change[1]
+        answer = rospy.ServiceProxy("/gazebo/set_model_state", SetModelState)(
+            ModelState(model_name=model, pose=now.pose, twist=now.twist, reference_frame="world"))
+    except (rospy.ServiceException, rospy.ROSException) as error:
+        raise SimConnectionError(f"--push: the sim's model state services failed: {error} (is the sim node "
+                                 f"running?)") from None
+    if not (now.success and answer.success):
+        raise SimConnectionError(f"--push: the sim refused: {now.status_message} {answer.status_message}")
+
+
+def with_pushes(env: Any, push: float, seed: int, horizon_s: float) -> Any:
+    """`env`, wrapped in Pushes if `push` (m/s) is above 0."""
+    return Pushes(env, push, seed, horizon_s) if push > 0.0 else env
+
+
+class Pushes(gymnasium.Wrapper[Any, Any, Any, Any]):
+    """`evaluate.py --push V`: kicks the base by V m/s horizontally at the times push_schedule draws from the
+    evaluation seed and the episode's number (counted over every policy's episodes), before the step they fall in."""
+
+    def __init__(self, env: Any, speed: float, seed: int, horizon_s: float):
+        super().__init__(env)
+        self.speed, self.seed, self.horizon_s = speed, seed, horizon_s
+        self.episode, self.start = -1, 0.0
+        self.pushes: list[tuple[float, float]] = []
+
+    def reset(self, **kwargs: Any) -> Any:
+        observation, info = self.env.reset(**kwargs)
+        self.episode += 1
+        self.pushes = push_schedule(self.seed, self.episode, self.horizon_s)
+        self.start = info["sim_time"]
+        return observation, info
+
+    def step(self, action: Any) -> Any:
+        readings = getattr(self.env.unwrapped, "readings", None)
+        if self.pushes and readings is not None and readings.stamp - self.start >= self.pushes[0][0]:
+            _, heading = self.pushes.pop(0)
+            kick_base(self.env, (self.speed * math.cos(heading), self.speed * math.sin(heading)))
+        return self.env.step(action)
 
 
 class TrainedRun(LoadedRun):
@@ -144,14 +224,17 @@ def with_initial_tilt(params: Any, tilt: tuple[float, float] | None, source: str
 
 
 def evaluate(run: TrainedRun, episodes: int, horizon_s: float, backend: str, seed: int,
-             video: VideoRequest | None = None, initial_tilt: tuple[float, float] | None = None) -> dict[str, Any]:
+             video: VideoRequest | None = None, initial_tilt: tuple[float, float] | None = None,
+             push: float = 0.0) -> dict[str, Any]:
     """Greedy, then seeded uniformly random, `episodes` each, from a seeded first reset; `video` records
-    the first greedy episodes; `initial_tilt` (LOW, HIGH rad) replaces the run's params' (None: the run's)."""
+    the first greedy episodes; `initial_tilt` (LOW, HIGH rad) replaces the run's params' (None: the run's);
+    `push` > 0: kicks of that many m/s (Pushes)."""
     params = with_initial_tilt(run.params, initial_tilt, "--initial-tilt")
     steps = max(1, round(horizon_s / params.running_step))
     rendering = {} if video is None else {"render_mode": "rgb_array", "render_width": video.width,
                                           "render_height": video.height}
-    env = make_env(run.task, params=params, backend=backend, seed=seed, max_episode_steps=steps, **rendering)
+    env = with_pushes(make_env(run.task, params=params, backend=backend, seed=seed, max_episode_steps=steps,
+                               **rendering), push, seed, steps * params.running_step)
     recorder = None if video is None else VideoRecorder(env, video.path, video.episodes,
                                                       slow_motion=video.slow_motion)
     rng = np.random.default_rng(seed)
@@ -167,6 +250,8 @@ def evaluate(run: TrainedRun, episodes: int, horizon_s: float, backend: str, see
     report = {"task": run.task.env_id, "episodes": episodes, "horizon_s": steps * params.running_step,
               "seed": seed, "initial_tilt": None if tilt is None else [tilt.low, tilt.high], "greedy": greedy,
               "random": random_policy}
+    if push > 0.0:
+        report["push"] = push
     if recorder is not None:
         report["video"] = {"path": str(recorder.path), "episodes": recorder.episodes_recorded,
                            "frames": recorder.frames, "fps": recorder.fps, "slow_motion": recorder.slow_motion}
@@ -174,11 +259,12 @@ def evaluate(run: TrainedRun, episodes: int, horizon_s: float, backend: str, see
 
 
 def evaluate_scripted(task: TaskSpec[Any], name: str, scripted: ScriptedPolicy, params: Any, episodes: int,
-                      horizon_s: float, backend: str, seed: int, speed: float) -> dict[str, Any]:
+                      horizon_s: float, backend: str, seed: int, speed: float, push: float = 0.0) -> dict[str, Any]:
     """`episodes` episodes of the scripted policy `name` on `params` (as scripted.env_params made them),
     from a seeded first reset."""
     steps = max(1, round(horizon_s / params.running_step))
-    env = make_env(task, params=params, backend=backend, seed=seed, max_episode_steps=steps)
+    env = with_pushes(make_env(task, params=params, backend=backend, seed=seed, max_episode_steps=steps), push, seed,
+                      steps * params.running_step)
     try:
         policy = scripted.build(env, speed)
         env.reset(seed=seed)
@@ -188,7 +274,7 @@ def evaluate_scripted(task: TaskSpec[Any], name: str, scripted: ScriptedPolicy, 
     tilt = getattr(params, "initial_tilt", None)
     return {"task": task.env_id, "episodes": episodes, "horizon_s": steps * params.running_step, "seed": seed,
             "initial_tilt": None if tilt is None else [tilt.low, tilt.high], "policy": name, "speed": speed,
-            name: figures}
+            name: figures, **({"push": push} if push > 0.0 else {})}
 
 
 def video_size(text: str) -> tuple[int, int]:
@@ -243,12 +329,17 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
     parser.add_argument("--initial-tilt", type=finite_float, nargs=2, metavar=("LOW", "HIGH"),
                         help=f"episodes start leaning a random angle in [LOW, HIGH] rad, where the task can (default "
                              f"{EVAL_INITIAL_TILT[0]} {EVAL_INITIAL_TILT[1]}; 0 0: upright)")
+    parser.add_argument("--push", type=float, default=0.0, metavar="V",
+                        help="kick the base V m/s horizontally in a random direction about every 2 s of sim time, "
+                             "drawn from --seed (default 0: no pushes)")
     parser.add_argument("--video", type=Path, help="record the first greedy episodes to this .mp4 file")
     parser.add_argument("--video-episodes", type=int, default=3, help="greedy episodes in the video (default 3)")
     parser.add_argument("--video-size", type=video_size, default=(320, 240), help="frame size WxH (default 320x240)")
     parser.add_argument("--slow-motion", type=float, default=1.0, metavar="K",
                         help="the video plays K times slower than real time, K from 1 (default) to 100")
     args = parser.parse_args(argv)
+    if not (math.isfinite(args.push) and args.push >= 0.0):
+        parser.error(f"--push must be a speed >= 0 (m/s), got {args.push}")
     if (args.run is None) == (args.policy == "greedy"):
         parser.error("--qtable RUN is needed for the greedy policy, and only for it")
     if args.episodes < 1:
@@ -303,7 +394,7 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
     except ParamError as error:
         parser.exit(2, f"evaluate.py: {error}\n")
     try:
-        report = evaluate(run, args.episodes, horizon_s, args.backend, args.seed, video, initial_tilt)
+        report = evaluate(run, args.episodes, horizon_s, args.backend, args.seed, video, initial_tilt, args.push)
     except (SimConnectionError, SimStateError, RunFileError) as error:
         # SimStateError: the direct backend's non-finite readings; RunFileError: weights that do not fit the model
         parser.exit(1, f"evaluate.py: {error}\n")
@@ -327,7 +418,7 @@ def _main_scripted(parser: argparse.ArgumentParser, args: argparse.Namespace, ta
         if over_ros(args.backend):
             init_ros_node(node_name)
         report = evaluate_scripted(task, args.policy, scripted, params, args.episodes, horizon_s, args.backend,
-                                   args.seed, args.speed)
+                                   args.seed, args.speed, args.push)
     except (SimConnectionError, SimStateError) as error:
         parser.exit(1, f"evaluate.py: {error}\n")
     except ValueError as error:  # a policy that cannot act in the task (constant's --action, a --speed refused)

@@ -142,6 +142,11 @@ AGENTS: dict[str, AgentSpec] = {spec.name: spec for spec in (
               trainer="robot_rl.agents.sb3.trainer:make_trainer", vector_env="robot_rl.agents.sb3.vec_env:make_vec_env",
               policy="robot_rl.agents.sb3.policy:greedy_policy", params="robot_rl.agents.sb3.params:SacParams",
               fit="robot_rl.agents.sb3.params:check_fit"),
+    AgentSpec("bc_dagger", "behaviour cloning and DAgger from the monoped's hopping controller, task end_to_end only",
+              DEEP_CHECKPOINT, "-bc_dagger", needs_deep=True, trainer="hopper_training.teacher.trainer:make_trainer",
+              vector_env="robot_rl.workers.vector_env:make_vector_env",
+              policy="hopper_training.teacher.student:greedy_policy",
+              params="hopper_training.teacher.params:BcDaggerParams"),
 )}
 
 

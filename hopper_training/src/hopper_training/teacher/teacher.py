@@ -1,0 +1,28 @@
+"""The teacher: the hopping controller (controller/core.py) shadow-run on whatever states the env visits.
+
+Every step, whoever acts (the teacher itself, or the student), the controller reads the env's latest readings
+and updates its phase machine, so that its label for a state is what it would command there after having lived
+through the same trajectory, at the student's control period. Its action is the label the student learns.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..controller.policy import ControllerPolicy
+
+
+class Teacher:
+    """The controller's action for the env's current state; reset() at each episode's start, then label() once
+    per step, before the step (the controller's phase machine follows the trajectory)."""
+
+    def __init__(self, env: Any):
+        self.controller = ControllerPolicy(env)
+
+    def reset(self) -> None:
+        self.controller.reset()
+
+    def label(self, observation: np.ndarray) -> np.ndarray:
+        """The action (Box(3), in [-1, 1]) the controller commands for the env's latest readings."""
+        return self.controller(observation)

@@ -1,0 +1,241 @@
+"""Agent bc_dagger's training (issue 39, Track A): the hopping controller teaches MonopedEndToEnd-v0's student.
+
+1. Behaviour cloning: `bc_episodes` episodes of the teacher acting (the later ones with Ornstein-Uhlenbeck noise
+   on its actions, so that the data holds recoveries from states it would not visit itself; the labels are always
+   its clean actions), then `bc_epochs` epochs of mean squared error on (observation, label).
+2. DAgger rounds: the student acts, except that with probability beta (beta_start x beta_decay^round) a step
+   takes the teacher's action; the teacher, shadow-run on the visited states (teacher.py), labels every one; the
+   new samples join the aggregate and the student trains `dagger_epochs` more epochs on it.
+Every collected episode is a row of episodes.csv (its epsilon column is the chance the teacher acted: 1 for a
+behaviour cloning episode, beta for a round's). Episode i of the run resets with seed 10000 x (seed + 1) + i.
+The run's checkpoint is agent.json (the counters, the rounds' figures and the sha256 of the weights) beside
+student.npz and student.json (student.py). Runs are not resumable: a stopped one keeps its episodes, a new one
+starts over. Needs torch (requirements-deep.txt); trains on one env (envs:=1), over ROS or direct.
+"""
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from robot_rl import (
+    DEFAULT_HOOKS,
+    AgentSpec,
+    Episode,
+    EpisodeRecord,
+    RunDirectory,
+    RunLedger,
+    TaskParams,
+    TaskSpec,
+    TrainingHooks,
+    TrainingState,
+)
+
+from .params import BcDaggerParams
+from .student import CHECKPOINT_FORMAT, NumpyStudent
+from .teacher import Teacher
+
+Actor = Callable[[np.ndarray], np.ndarray]
+class StopRequested(Exception):
+    """The run's hooks asked to stop (Ctrl-C through the training node): the episodes so far are saved."""
+
+
+OU_DECAY, OU_SCALE = 0.8, 0.6  # the noise's correlation (~20 ms at 5 ms steps: long enough for the PD to feel it)
+
+
+class StudentNet(nn.Module):
+    """The MLP: normalised observation -> tanh hidden layers -> tanh output (the action, in [-1, 1])."""
+
+    mean: torch.Tensor
+    std: torch.Tensor
+
+    def __init__(self, sizes: Sequence[int]):
+        super().__init__()
+        layers: list[nn.Module] = []
+        for m, n in zip(sizes, sizes[1:]):
+            layers += [nn.Linear(m, n), nn.Tanh()]
+        self.net = nn.Sequential(*layers)
+        self.register_buffer("mean", torch.zeros(sizes[0]))
+        self.register_buffer("std", torch.ones(sizes[0]))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.net((x - self.mean) / self.std)
+
+    def set_normaliser(self, observations: np.ndarray) -> None:
+        """The inputs' mean and standard deviation (+ 1e-3, so a constant input divides by no zero)."""
+        self.mean.copy_(torch.as_tensor(observations.mean(axis=0)))
+        self.std.copy_(torch.as_tensor(observations.std(axis=0) + 1e-3))
+
+    def numpy_student(self) -> NumpyStudent:
+        linears = [layer for layer in self.net if isinstance(layer, nn.Linear)]
+        return NumpyStudent([(layer.weight.detach().numpy().astype(np.float64),
+                              layer.bias.detach().numpy().astype(np.float64)) for layer in linears],
+                            self.mean.numpy().astype(np.float64), self.std.numpy().astype(np.float64))
+
+
+def fit(net: StudentNet, observations: np.ndarray, labels: np.ndarray, epochs: int, learning_rate: float,
+        batch_size: int, generator: torch.Generator) -> float:
+    """`epochs` epochs of Adam on the mean squared error (cosine learning rate); returns the last epoch's error."""
+    optimiser = torch.optim.Adam(net.parameters(), lr=learning_rate)
+    schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimiser, epochs)
+    x, y = torch.as_tensor(observations), torch.as_tensor(labels)
+    total = 0.0
+    for _ in range(epochs):
+        total = 0.0
+        for batch in torch.randperm(len(x), generator=generator).split(batch_size):
+            loss = ((net(x[batch]) - y[batch]) ** 2).mean()
+            optimiser.zero_grad()
+            loss.backward()
+            optimiser.step()
+            total += loss.item() * len(batch)
+        schedule.step()
+    return total / len(x)
+
+
+def rollout(env: Any, teacher: Teacher, seed: int, max_steps: int, rng: np.random.Generator,
+            student: Actor | None = None, beta: float = 1.0, noise: float = 0.0
+            ) -> tuple[np.ndarray, np.ndarray, Episode]:
+    """One episode from reset(seed=seed), at most `max_steps` steps: the student acts (None: the teacher), the
+    teacher's action taken instead with probability `beta` per step (with OU noise of scale `noise` when the
+    teacher acts throughout). Returns the observations, the teacher's labels for them and the Episode."""
+    observation, _ = env.reset(seed=seed)
+    teacher.reset()
+    observations, labels = [], []
+    total, steps, terminated, info, eps = 0.0, 0, False, {}, np.zeros(3)
+    while steps < max_steps:
+        label = teacher.label(observation)
+        observations.append(observation)
+        labels.append(label)
+        if student is None or rng.random() < beta:
+            action = label
+            if noise > 0.0:
+                eps = OU_DECAY * eps + OU_SCALE * noise * rng.standard_normal(3)
+                action = np.clip(label + eps, -1.0, 1.0).astype(np.float32)
+        else:
+            action = student(observation)
+        observation, reward, terminated, truncated, info = env.step(action)
+        total += reward
+        steps += 1
+        if terminated or truncated:
+            break
+    episode = Episode(steps=steps, return_=total, terminated=terminated,
+                      duration=steps * env.unwrapped.running_step, info=info)
+    return np.array(observations, np.float32), np.array(labels, np.float32), episode
+
+
+class BcDaggerTrainer:
+    """Trains the student of `env` (one MonopedEndToEnd-v0 env) from the controller and writes `run`."""
+
+    def __init__(self, env: Any, task: TaskSpec[Any], params: TaskParams, agent: AgentSpec,
+                 agent_params: BcDaggerParams, run: RunDirectory, hooks: TrainingHooks = DEFAULT_HOOKS,
+                 agent_config: Path | None = None):
+        if not hasattr(env, "unwrapped") or not hasattr(env.unwrapped, "readings"):
+            raise ValueError("agent bc_dagger trains on one env whose readings its teacher reads: envs:=1")
+        agent_params.check_action_space(env.action_space, f"agent {agent.name} on {task.env_id}")
+        torch.set_num_threads(1)
+        torch.manual_seed(params.seed)
+        self.env, self.task, self.params, self.agent, self.p, self.run = env, task, params, agent, agent_params, run
+        self.agent_config = None if agent_config is None else str(agent_config)
+        self.log, self.should_stop = hooks.log, hooks.should_stop
+        run.checkpoint_name = agent.checkpoint_name
+        size = int(np.prod(env.observation_space.shape))
+        self.net = StudentNet([size, *[agent_params.hidden_units] * agent_params.hidden_layers, 3])
+        self.generator = torch.Generator().manual_seed(params.seed)
+        self.rng = np.random.default_rng(params.seed)
+        self.teacher = Teacher(env)
+        self.max_steps = max(1, round(agent_params.horizon_s / env.unwrapped.running_step))
+        self.rounds: list[dict[str, Any]] = []
+        self.beta = 1.0
+        self.state = TrainingState()
+        nepisodes = agent_params.bc_episodes + agent_params.dagger_rounds * agent_params.dagger_episodes
+        self.ledger = RunLedger(run, task, nepisodes, self.state, self, hooks)
+
+    # -- the Learner's side (RunLedger) --
+    def save_checkpoint(self) -> None:
+        sha256 = self.net.numpy_student().save(self.run.path)
+        self.run.checkpoint({"format": CHECKPOINT_FORMAT, "agent": self.agent.name, "task": self.task.env_id,
+                             "episode": self.state.episode, "state": dataclasses.asdict(self.state),
+                             "agent_params": self.p.to_mapping(), "agent_config": self.agent_config,
+                             "weights_sha256": sha256, "rounds": self.rounds})
+
+    def episode_label(self, epsilon: float) -> str:
+        return f"teacher share {epsilon:.3f}"
+
+    def exploration_label(self) -> str:
+        return f", teacher share {self.beta:.3f}"
+
+    def summary_fields(self) -> dict[str, Any]:
+        return {"agent": self.agent.name, "agent_config": self.agent_config, "teacher": "hopper_training.controller",
+                "rounds": self.rounds}
+
+    def closing_lines(self, summary: dict[str, Any], last: Sequence[EpisodeRecord]) -> list[str]:
+        return [f"stage {r['stage']}: teacher share {r['beta']:.3f}, collected upright {r['collect_upright']:.2f}, "
+                f"{r['samples']} samples, training error {r['train_mse']:.5f}" for r in self.rounds]
+
+    # -- training --
+    def _collect(self, episodes: int, student: Actor | None, beta: float, noise: Callable[[int], float]
+                 ) -> tuple[list[np.ndarray], list[np.ndarray], list[Episode]]:
+        xs, ys, collected = [], [], []
+        for i in range(episodes):
+            if self.should_stop():
+                raise StopRequested
+            seed = 10_000 * (self.params.seed + 1) + self.state.episode
+            x, y, episode = rollout(self.env, self.teacher, seed, self.max_steps, self.rng, student, beta, noise(i))
+            xs.append(x)
+            ys.append(y)
+            collected.append(episode)
+            self.ledger.episode_done(episode, episode.return_, beta)
+            self.ledger.log_progress_if_due()
+        return xs, ys, collected
+
+    def _train_stage(self, stage: str, observations: np.ndarray, labels: np.ndarray, epochs: int,
+                     learning_rate: float, collected: list[Episode]) -> None:
+        started = time.monotonic()
+        mse = fit(self.net, observations, labels, epochs, learning_rate, self.p.batch_size, self.generator)
+        self.rounds.append({"stage": stage, "beta": self.beta, "episodes": len(collected),
+                            "collect_upright": float(np.mean([not e.terminated for e in collected])),
+                            "samples": len(observations), "epochs": epochs, "train_mse": mse,
+                            "train_wall_s": time.monotonic() - started})
+        self.log(f"{stage}: {len(observations)} samples, training error {mse:.5f}")
+
+    def train(self) -> dict[str, Any]:
+        p = self.p
+        self.ledger.start()
+        try:
+            with self.ledger.saved_on_stop():
+                xs, ys, collected = self._collect(p.bc_episodes, None, 1.0, lambda i: p.bc_noise * i / p.bc_episodes)
+                observations, labels = np.concatenate(xs), np.concatenate(ys)
+                self.net.set_normaliser(observations)
+                self._train_stage("bc", observations, labels, p.bc_epochs, p.learning_rate, collected)
+                for round_ in range(p.dagger_rounds):
+                    self.beta = p.beta(round_)
+                    student = self.net.numpy_student()
+                    xs, ys, collected = self._collect(p.dagger_episodes, student, self.beta, lambda i: 0.0)
+                    observations = np.concatenate([observations, *xs])
+                    labels = np.concatenate([labels, *ys])
+                    self._train_stage(f"dagger {round_}", observations, labels, p.dagger_epochs,
+                                      p.dagger_learning_rate, collected)
+                    self.ledger.checkpoint()
+        except StopRequested:  # saved_on_stop saved the checkpoint and an "interrupted" summary
+            return self.ledger.finish(stopped="interrupted")
+        return self.ledger.close(done=True)
+
+
+def make_trainer(spec: AgentSpec, env: Any, task: TaskSpec[Any], params: TaskParams, run: RunDirectory,
+                 hooks: TrainingHooks, resume: bool = False, agent_params: Any = None, max_steps: int | None = None,
+                 agent_config: Path | None = None) -> BcDaggerTrainer:
+    """The agent registry's entry point of agent bc_dagger."""
+    if resume:
+        raise ValueError("a bc_dagger run cannot be resumed (its data is not saved): train a new run")
+    if max_steps is not None:
+        raise ValueError("agent bc_dagger's budget is its episodes (bc_episodes, dagger_rounds x dagger_episodes), "
+                         "not max_steps")
+    if not isinstance(agent_params, BcDaggerParams):
+        raise ValueError(f"agent bc_dagger needs BcDaggerParams, got {type(agent_params).__name__}")
+    return BcDaggerTrainer(env, task, params, spec, agent_params, run, hooks, agent_config)

@@ -1,0 +1,103 @@
+"""Agent bc_dagger (issue 39, Track A) on the direct backend: the teacher's labels are the controller's output on
+the student's own states, a tiny run (2 short teacher episodes, 1 BC epoch, one DAgger round) writes every file,
+and evaluate.py's loader plays its student with the controller made unusable."""
+import json
+
+import numpy as np
+import pytest
+
+import hopper_training
+from hopper_training.controller.core import HopController, HopGains, hop_input
+from hopper_training.envs.end_to_end import END_TO_END
+from hopper_training.robot import CONTACT_SENSOR, IMU_SENSOR, ODOMETRY_SENSOR
+from hopper_training.teacher.params import BcDaggerParams
+from hopper_training.teacher.student import WEIGHTS_FILE
+from hopper_training.teacher.teacher import Teacher
+from robot_rl import AGENTS, DEEP_CHECKPOINT, ParamError, RunDirectory, RunFileError, TrainingHooks, make_env
+
+pytestmark = pytest.mark.deep  # torch
+
+AGENT = AGENTS["bc_dagger"]
+TINY = dict(bc_episodes=2, bc_epochs=1, dagger_rounds=1, dagger_episodes=1, dagger_epochs=1, horizon_s=0.1,
+            batch_size=64)
+
+
+@pytest.fixture
+def env():
+    made = make_env(END_TO_END, backend="direct", seed=0)
+    yield made
+    made.close()
+
+
+def test_the_teachers_labels_on_the_students_states_are_the_controllers_output_on_those_readings(env):
+    teacher, rng = Teacher(env), np.random.default_rng(0)
+    observation, _ = env.reset(seed=4)
+    teacher.reset()
+    labels, readings = [], []
+    for _ in range(150):  # the "student" here: random targets, states the teacher would never visit itself
+        labels.append(teacher.label(observation))
+        readings.append(env.unwrapped.readings)
+        observation, *_ = env.step(rng.uniform(-0.3, 0.3, 3).astype(np.float32))
+    controller, p = HopController(HopGains()), env.unwrapped.params
+    start = np.array([p.start_pose.haa, p.start_pose.hfe, p.start_pose.kfe])
+    for label, r in zip(labels, readings):
+        targets = controller.update(hop_input(r.joints, r.imu(IMU_SENSOR), r.odometry(ODOMETRY_SENSOR),
+                                              r.contact(CONTACT_SENSOR)))
+        assert np.array_equal(label, np.clip((np.array(targets) - start) / p.target_range, -1, 1).astype(np.float32))
+    assert len({tuple(label) for label in labels}) > 10, "the labels follow the trajectory"
+
+
+def test_the_agent_refuses_tasks_without_the_teachers_actions():
+    params = AGENT.load_params()
+    assert isinstance(params, BcDaggerParams) and params.beta(0) == 0.5 and params.beta(2) == 0.125
+    with pytest.raises(ParamError, match="bc_dagger's teacher sets the monoped's three joint targets"):
+        import gymnasium
+        params.check_action_space(gymnasium.spaces.Discrete(7), "agent bc_dagger on Monoped-v0")
+
+
+def tiny_run(tmp_path, env):
+    params = END_TO_END.default_params()
+    run = RunDirectory.create(tmp_path, AGENT.results_name(END_TO_END), params.to_mapping(), END_TO_END.metric_names,
+                              run_name="tiny", checkpoint_name=AGENT.checkpoint_name)
+    agent_params = AGENT.load_params().with_changes("test", **TINY)
+    lines = []
+    trainer = AGENT.make_trainer(env, END_TO_END, params, run, TrainingHooks(log=lines.append),
+                                 agent_params=agent_params)
+    return run, trainer.train(), lines
+
+
+def test_a_tiny_run_writes_every_file_and_its_student_plays_without_the_controller(tmp_path, env, monkeypatch):
+    run, summary, lines = tiny_run(tmp_path, env)
+    assert run.path == tmp_path / "end_to_end-bc_dagger" / "tiny"
+    for name in ("params.yaml", "episodes.csv", DEEP_CHECKPOINT, "student.npz", "student.json", "summary.json",
+                 "learning_curve.png"):
+        assert (run.path / name).is_file(), name
+    episodes = run.read_episodes()
+    assert [e.epsilon for e in episodes] == [1.0, 1.0, 0.5] and all(e.steps == 20 for e in episodes)
+    assert summary["completed"] and summary["episodes"] == 3 and summary["agent"] == "bc_dagger"
+    assert [r["stage"] for r in summary["rounds"]] == ["bc", "dagger 0"]
+    assert [r["samples"] for r in summary["rounds"]] == [40, 60]
+    architecture = json.loads((run.path / "student.json").read_text())
+    assert architecture["sizes"] == [63, 256, 256, 3] and len(architecture["normaliser"]["mean"]) == 63
+    with np.load(run.path / "student.npz", allow_pickle=False) as arrays:
+        assert sorted(arrays) == ["W0", "W1", "W2", "b0", "b1", "b2"]
+    assert any(line.startswith("dagger 0: 60 samples") for line in lines)
+
+    def no_controller(*args, **kwargs):
+        raise AssertionError("the controller ran in the student's evaluation")
+    monkeypatch.setattr(HopController, "update", no_controller)
+    from robot_rl.evaluation import TrainedRun, evaluate
+    trained = TrainedRun(run.path, hopper_training.TASKS)
+    report = evaluate(trained, episodes=1, horizon_s=0.2, backend="direct", seed=1000)
+    assert report["task"] == "MonopedEndToEnd-v0" and report["greedy"]["mean_time_upright_s"] > 0.0
+
+
+def test_weights_that_are_not_the_checkpoints_are_refused_in_one_line(tmp_path, env):
+    run, _, _ = tiny_run(tmp_path, env)
+    with np.load(run.path / WEIGHTS_FILE, allow_pickle=False) as arrays:
+        changed = {name: arrays[name] * 2 for name in arrays}
+    np.savez(run.path / WEIGHTS_FILE, **changed)
+    from robot_rl.evaluation import TrainedRun
+    with pytest.raises(RunFileError, match=r"student.npz: not the student's weights \(not the weights the "
+                                           r"checkpoint recorded"):
+        TrainedRun(run.path, hopper_training.TASKS)
