@@ -1,6 +1,8 @@
-"""Crash-safe file writing: write a temp file in the target's directory, fsync, rename over."""
+"""Crash-safe file writing (a temp file in the target's directory, fsync, rename over) and the locks that keep
+another process from writing a folder at the same time."""
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import secrets
@@ -8,6 +10,8 @@ from pathlib import Path
 from typing import Any
 
 StrPath = str | os.PathLike
+
+_held_locks: dict[Path, int] = {}  # lock file -> the descriptor whose flock this process holds for its life
 
 
 def _temp_name(path: Path) -> Path:
@@ -65,3 +69,20 @@ def symlink_atomic(target: StrPath, link_path: StrPath) -> None:
         tmp.unlink(missing_ok=True)
         raise
     _fsync_dir(link_path.parent)
+
+
+def hold_lock(path: Path) -> bool:
+    """Hold an exclusive flock on the file `path` (made if missing) for the rest of this process's life; the kernel
+    drops it when the process ends, however it ends. True if this process holds it (now, or already); False if
+    another process does."""
+    path = path.resolve()
+    if path in _held_locks:
+        return True
+    fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(fd)
+        return False
+    _held_locks[path] = fd
+    return True

@@ -12,21 +12,18 @@ from __future__ import annotations
 
 import dataclasses
 import datetime
-import fcntl
-import os
 import shutil
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from robot_rl import write_text_atomic
+from robot_rl import hold_lock, write_text_atomic
 from workspace_tools import sweep_spec
 from workspace_tools.sweep_spec import SweepError, SweepSpec, Trial, check_agent_fits, parse_sweep, trial_config
 
 RESULTS_LINK = ".results"       # <sweep>/.results/<results name> -> <sweep>: the trials' results_dir
 LOCK_FILE = ".lock"             # <sweep>/.lock
-_held_locks: dict[Path, int] = {}  # sweep folder -> the descriptor whose flock this driver holds for its life
 
 
 class SweepLockedError(SweepError):
@@ -37,16 +34,9 @@ def lock_sweep(sweep_dir: Path) -> None:
     """Hold the sweep's lock (flock on <sweep>/.lock) for the rest of this driver's life, as a training holds its
     run's; SweepLockedError if another driver holds it. The kernel drops it when the driver ends, however."""
     path = sweep_dir.resolve()
-    if path in _held_locks:
-        return
-    fd = os.open(path / LOCK_FILE, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        os.close(fd)
+    if not hold_lock(path / LOCK_FILE):
         raise SweepLockedError(f"sweep {path.name}: another ./ws sweep is running it (it holds {path / LOCK_FILE}); "
-                               f"wait for it to end (or stop it), then resume:=true name:={path.name}") from None
-    _held_locks[path] = fd
+                               f"wait for it to end (or stop it), then resume:=true name:={path.name}")
 
 
 def agent_config_file(sweep_dir: Path, trial: Trial) -> Path:

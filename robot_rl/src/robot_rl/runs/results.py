@@ -12,7 +12,6 @@ episodes.csv has the columns of every task (COLUMNS) followed by the task's own 
 from __future__ import annotations
 
 import csv
-import fcntl
 import io
 import json
 import os
@@ -25,7 +24,7 @@ from typing import Any, TypeVar
 import numpy as np
 import yaml
 
-from ..atomic import StrPath, symlink_atomic, write_bytes_atomic, write_json_atomic, write_text_atomic
+from ..atomic import StrPath, hold_lock, symlink_atomic, write_bytes_atomic, write_json_atomic, write_text_atomic
 from .plots import learning_curve_png
 
 COLUMNS = ("episode", "steps", "return", "epsilon", "sim_time", "wall_time")
@@ -34,7 +33,6 @@ QTABLE_CHECKPOINT = "qtable.json"
 DEEP_CHECKPOINT = "agent.json"
 LOCK_FILE = ".lock"
 T = TypeVar("T")
-_held_locks: dict[Path, int] = {}  # run folder -> the descriptor whose flock this process holds for its life
 
 
 class RunLockedError(ValueError):
@@ -184,16 +182,9 @@ class RunDirectory:
         """Hold the run's lock for the rest of this process's life (a no-op if it already does);
         RunLockedError naming the folder if another process holds it."""
         path = self.path.resolve()
-        if path in _held_locks:
-            return
-        fd = os.open(path / LOCK_FILE, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            os.close(fd)
+        if not hold_lock(path / LOCK_FILE):
             raise RunLockedError(f"{path}: another process is training this run (it holds {path / LOCK_FILE}); "
-                                 f"wait for it to end, or train another run") from None
-        _held_locks[path] = fd
+                                 f"wait for it to end, or train another run")
 
     @property
     def metric_names(self) -> tuple[str, ...]:
