@@ -215,7 +215,7 @@ def test_unknown_task_names_the_known_ones(master, tmp_path):
                          f"results_dir:={tmp_path / 'results'}"], timeout=120)
     assert result.returncode == 1
     one_line(result.stdout + result.stderr,
-             "unknown task 'fly' (known: stay_up, hop, hop_in_place, residual_in_place, residual_forward)")
+             "unknown task 'fly' (known: stay_up, hop, hop_in_place, residual_in_place, residual_forward, end_to_end)")
 
 
 @pytest.mark.parametrize("args, expected", [
