@@ -12,7 +12,7 @@ import pytest
 from PIL import ImageGrab
 
 from workspace_tools.paths import PROGRAMS
-from workspace_tools.processes import Processes, launch_args
+from workspace_tools.processes import Processes, launch_args, stop
 
 HUMAN = PROGRAMS / "human_render.py"
 SHOW_ROBOT_TIMEOUT = 120.0  # wall s: rviz starts on a software OpenGL (llvmpipe) on 2 busy cores
@@ -128,11 +128,16 @@ def test_ws_rviz_hopper_shows_the_monoped_hopping_with_no_repeated_tf(ros_master
     listeners never see one transform twice at one stamp (TF_REPEATED_DATA)."""
     ros_master.env["DISPLAY"] = xvfb
     log = tmp_path / "roslaunch.log"
-    with open(log, "w") as out:
-        launch = ros_master.start(["roslaunch", "hopper_training", "hop_controller.launch",
-                                   *launch_args(rviz="true", paused="false")], stdout=out, stderr=subprocess.STDOUT)
-    watch = ros_master.run([sys.executable, "-c", ODOMETRY_WATCH, str(HOP_SIM_SECONDS), str(HOP_TIMEOUT)],
-                           timeout=HOP_TIMEOUT + 30.0)
+    for attempt in (1, 2):  # rviz itself (Ogre on Xvfb's software GL) once segfaulted on a loaded machine: once more
+        with open(log, "w") as out:
+            launch = ros_master.start(["roslaunch", "hopper_training", "hop_controller.launch",
+                                       *launch_args(rviz="true", paused="false")], stdout=out,
+                                      stderr=subprocess.STDOUT)
+        watch = ros_master.run([sys.executable, "-c", ODOMETRY_WATCH, str(HOP_SIM_SECONDS), str(HOP_TIMEOUT)],
+                               timeout=HOP_TIMEOUT + 30.0)
+        if attempt == 2 or not re.search(r"\[rviz-\d+\] process has died .*exit code -11", log.read_text()):
+            break
+        stop(launch)  # the launch whose rviz died, before the next one on this master
     assert watch.returncode == 0, watch.stderr[-2000:] + log.read_text()[-3000:]
     heights = json.loads(watch.stdout.strip().splitlines()[-1])
     assert heights["lowest"] > 0.7, f"the monoped fell (base down to {heights['lowest']:.2f} m)"
