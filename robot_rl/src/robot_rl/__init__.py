@@ -19,7 +19,15 @@ from .agents.qlearn.qlearn import QLearn
 from .agents.qlearn.trainer import QLearningTrainer
 from .agents.qlearn.vector_trainer import VectorQLearningTrainer
 from .agents.registry import AGENTS, DEFAULT_AGENT, AgentSpec, Trainer, agent_of, checkpoint_of, find_agent
-from .atomic import StrPath, hold_lock, symlink_atomic, write_bytes_atomic, write_json_atomic, write_text_atomic
+from .atomic import (
+    StrPath,
+    hold_lock,
+    lock_while,
+    symlink_atomic,
+    write_bytes_atomic,
+    write_json_atomic,
+    write_text_atomic,
+)
 from .discretiser import Discretiser
 from .envs.backends.base import Backend, Readings, SimStateError, non_finite_problem
 from .envs.backends.direct import DirectBackend
@@ -145,7 +153,8 @@ __all__ = [
     "make_backend", "make_env", "make_env_workers", "make_vec_env", "make_vector_env", "moving_average",
     "non_finite_problem", "package_path", "param", "parse_scalar", "prepare_child", "random_actions",
     "register_tasks", "restored_state", "reward_plot", "run_training_node", "stop_process", "symlink_atomic",
-    "hold_lock", "training_node", "worker_seeds", "write_bytes_atomic", "write_json_atomic", "write_text_atomic",
+    "hold_lock", "lock_while", "training_node", "worker_seeds", "write_bytes_atomic", "write_json_atomic",
+    "write_text_atomic",
 ]
 
 

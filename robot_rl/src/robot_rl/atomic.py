@@ -2,10 +2,12 @@
 another process from writing a folder at the same time."""
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import json
 import os
 import secrets
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -86,3 +88,19 @@ def hold_lock(path: Path) -> bool:
         return False
     _held_locks[path] = fd
     return True
+
+
+@contextlib.contextmanager
+def lock_while(path: Path, mode: int = 0o644) -> Iterator[bool]:
+    """An exclusive flock on the file `path` (made with `mode` if missing) while the block runs: yields True if
+    this process got it, False if another process holds it. Not inherited by children (PEP 446, O_CLOEXEC)."""
+    fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, mode)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            yield False
+            return
+        yield True
+    finally:
+        os.close(fd)

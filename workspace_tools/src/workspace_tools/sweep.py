@@ -42,7 +42,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import datetime
-import fcntl
 import importlib
 import json
 import logging
@@ -64,6 +63,7 @@ from robot_rl import (
     cluster,
     format_duration,
     free_port,
+    lock_while,
     prepare_child,
     stop_process,
     write_json_atomic,
@@ -132,16 +132,11 @@ def trial_done(job: TrialJob) -> bool:
 def _run_locked(job: TrialJob) -> Iterator[None]:
     """The trial's run lock (robot_rl's flock on <run>/.lock, which every training of the run holds) while the
     block runs; RuntimeError naming the run if a training process holds it."""
-    fd = os.open(job.run_dir / LOCK_FILE, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
-    try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
+    with lock_while(job.run_dir / LOCK_FILE) as held:
+        if not held:
             raise RuntimeError(f"trial {job.name}: another process is training its run {job.run_dir} (it holds "
-                               f"{job.run_dir / LOCK_FILE}); nothing of it was changed") from None
+                               f"{job.run_dir / LOCK_FILE}); nothing of it was changed")
         yield
-    finally:
-        os.close(fd)
 
 
 def _train(job: TrialJob) -> None:

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import fcntl
 import json
 import logging
 import os
@@ -49,6 +48,8 @@ from collections.abc import Iterator, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
+
+from ..atomic import lock_while
 
 STATE_DIR_ENV = "ROBOT_RL_CLUSTER_DIR"
 DEFAULT_PORT = 6379              # the head's GCS port (Ray's own default): the one port a joining machine names
@@ -209,16 +210,11 @@ def locked(folder: Path) -> Iterator[None]:
     ClusterError at once if another ./ws cluster command holds it."""
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / "cluster.lock"
-    descriptor = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)  # not inherited by ray start (PEP 446)
-    try:
-        try:
-            fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
+    with lock_while(path, 0o600) as held:  # not inherited by ray start
+        if not held:
             raise ClusterError(f"another ./ws cluster start, join or stop of this workspace is under way (it holds "
-                               f"{path}): wait for it, then ./ws cluster status") from None
+                               f"{path}): wait for it, then ./ws cluster status")
         yield
-    finally:
-        os.close(descriptor)
 
 
 def clean_up(folder: Path) -> NodeRecord | None:
