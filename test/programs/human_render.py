@@ -7,6 +7,7 @@ import os
 import sys
 import time
 import warnings
+from typing import Any
 
 import numpy as np
 from gymnasium.utils.env_checker import check_env
@@ -30,7 +31,7 @@ def main(screenshot: str) -> None:
     try:
         start = time.monotonic()  # before reset(), which (human mode) starts the env's real-time pacing
         env.reset(seed=0)
-        returned = [env.step(0) is not None and env.render() for _ in range(STEPS)]
+        returned: list[Any] = [env.step(0) is not None and env.render() for _ in range(STEPS)]
         wall = time.monotonic() - start
         image = np.asarray(ImageGrab.grab(xdisplay=os.environ["DISPLAY"]))
         world = env.unwrapped.backend.world  # type: ignore[attr-defined]

@@ -151,7 +151,7 @@ class RobotEnv(gymnasium.Env[np.ndarray, Any], Generic[P], abc.ABC):
         space = self.action_space
         if isinstance(space, spaces.Discrete):
             # A direct range check first: Discrete.contains costs as much as a tenth of a lockstep exchange.
-            if not (isinstance(action, (int, np.integer)) and 0 <= action < space.n) \
+            if not (isinstance(action, (int, np.integer)) and 0 <= action < int(space.n)) \
                     and not space.contains(action):  # e.g. SB3's predict(): a 0-d integer array
                 raise ValueError(f"action {action!r} is not in {space}")
             action = int(action)
@@ -170,7 +170,7 @@ class RobotEnv(gymnasium.Env[np.ndarray, Any], Generic[P], abc.ABC):
             self.render()
         return observation, float(sum(terms.values())), terminated, False, info
 
-    def render(self) -> np.ndarray | None:
+    def render(self) -> np.ndarray | None:  # type: ignore[override]  # gymnasium 1.2: an unbound RenderFrame
         """rgb_array: the current frame; human: update the view and keep sim time no faster than wall time."""
         self._check_open()
         if self.render_mode == "rgb_array":

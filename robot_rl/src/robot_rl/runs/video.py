@@ -88,7 +88,7 @@ class VideoRecorder(gymnasium.Wrapper[Any, Any, Any, Any]):
                 self._write_frame()
 
     def _write_frame(self) -> None:
-        frame = self.env.render()
+        frame: Any = self.env.render()
         if not (isinstance(frame, np.ndarray) and frame.ndim == 3 and frame.shape[2] == 3 and frame.dtype == np.uint8):
             raise ValueError(f"render() must return an HxWx3 uint8 array, got {type(frame).__name__} "
                              f"{getattr(frame, 'shape', '')}")
