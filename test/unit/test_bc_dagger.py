@@ -101,3 +101,33 @@ def test_weights_that_are_not_the_checkpoints_are_refused_in_one_line(tmp_path, 
     with pytest.raises(RunFileError, match=r"student.npz: not the student's weights \(not the weights the "
                                            r"checkpoint recorded"):
         TrainedRun(run.path, hopper_training.TASKS)
+
+
+def test_a_shipped_bc_dagger_run_is_its_weights_as_trained_and_plays_as_the_run(tmp_path, env):
+    from robot_rl.evaluation import TrainedRun
+    from workspace_tools.ship import ship_run
+    run, _, _ = tiny_run(tmp_path, env)
+    shipped = tmp_path / "policies" / "end_to_end"
+    names = ship_run(run.path, shipped)
+    assert sorted(names) == sorted(p.name for p in shipped.iterdir()) == sorted(
+        ["params.yaml", "episodes.csv", "learning_curve.png", "summary.json", DEEP_CHECKPOINT, "student.npz",
+         "student.json"])
+    for name in ("student.npz", "student.json", DEEP_CHECKPOINT):
+        assert (shipped / name).read_bytes() == (run.path / name).read_bytes(), name
+    observation, _ = env.reset(seed=3)
+    actions = [TrainedRun(path, hopper_training.TASKS).policy(env, 0)(observation) for path in (run.path, shipped)]
+    assert np.array_equal(*actions)
+
+
+def test_a_bc_dagger_run_whose_weights_are_not_its_checkpoints_ships_nothing(tmp_path, env):
+    from workspace_tools.ship import ship_run
+    run, _, _ = tiny_run(tmp_path, env)
+    with np.load(run.path / WEIGHTS_FILE, allow_pickle=False) as arrays:
+        changed = {name: arrays[name] * 2 for name in arrays}
+    np.savez(run.path / WEIGHTS_FILE, **changed)
+    with pytest.raises(ValueError, match=r"not shipped, its policy does not load: .*not the weights the checkpoint"):
+        ship_run(run.path, tmp_path / "policies" / "end_to_end")
+    (run.path / WEIGHTS_FILE).unlink()
+    with pytest.raises(ValueError, match=r"agent.json without its student.npz"):
+        ship_run(run.path, tmp_path / "policies" / "end_to_end")
+    assert not (tmp_path / "policies").exists() or not list((tmp_path / "policies").iterdir())

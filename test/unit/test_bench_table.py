@@ -166,3 +166,21 @@ def test_a_run_without_figures_per_robot_prints_no_table(capsys):
     assert "cube: 100 training episodes over ROS in 41.5 s" in lines
     page_text = bench.markdown(data, "./ws bench --sections training --markdown")
     assert "|" not in page_text and "100 episodes of cube training over ROS took 41.5 s." in page_text
+
+
+def test_the_end_to_end_rows_are_the_hoppers_alone(capsys):
+    data = report(3, [1.9, 1.9, 1.9])
+    data["hopper"] = {"running_step": 0.005, "end_to_end": {
+        "steps": 2000, "actions": "the teacher's", "ros_steps_per_s": 402.4, "direct_steps_per_s": 1104.7,
+        "ratio_ros_to_direct": 0.364, "teacher_us_per_step": 397.0},
+        "bc_dagger": {"direct_samples_per_s": 96.6}, "per_repetition": {"end_to_end_ratio": [0.36, 0.33, 0.4]}}
+    lines = table(capsys, data)
+
+    def cells(label):
+        [line] = [line for line in lines if line.startswith(f"| {label} ")]
+        return [cell.strip() for cell in line.split("|")[2:4]]
+    assert cells("end_to_end, teacher acting, ROS, env steps/s") == ["", "402"]
+    assert cells("end_to_end, teacher acting, direct, env steps/s") == ["", "1105"]
+    assert cells("end_to_end: ROS / direct") == ["", "0.36"]
+    assert cells("  end_to_end: ROS / direct: lowest-highest repetition") == ["", "0.33-0.40"]
+    assert cells("bc_dagger direct, tiny budget, samples/s") == ["", "97"]

@@ -97,6 +97,7 @@ def test_rviz_shows_the_cube_sim_and_the_monoped_hopping_under_its_controller(mo
     (["sweep", "--help"], []),
     (["cluster", "start", "--num-cpus", "2"], ["requirements requirements-distributed.txt"]),
     (["demo", "hopper", "policy:=residual_forward_sac"], ["requirements requirements-deep.txt"]),
+    (["demo", "hopper", "policy:=end_to_end"], []),  # the bc_dagger student plays in numpy
     (["plot"], ["apt python3-tk"]),
     (["lint"], ["requirements requirements-dev.txt"]),
     (["setup", "distributed"], ["requirements requirements-distributed.txt"]),

@@ -1,10 +1,13 @@
 #!/usr/bin/env python3
 """Ship a trained run into the repository: its checkpoint, params and results, a deep run's model.zip with
-its weights only (workspace_tools.ship): loaded back before it replaces the destination folder whole.
+its weights only or a bc_dagger run's student (workspace_tools.ship): loaded back before it replaces the destination
+folder whole.
 
   ship_policy.py RUN DESTINATION
   e.g. ./ws exec rosrun workspace_tools ship_policy.py training_results/residual_forward-sac/sac_s0 \
            hopper_training/policies/residual_forward_sac
+       ./ws exec rosrun workspace_tools ship_policy.py training_results/end_to_end-bc_dagger/s0 \
+           hopper_training/policies/end_to_end
 """
 import argparse
 import sys

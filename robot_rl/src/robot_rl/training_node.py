@@ -2,15 +2,18 @@
 
 Picks the task (private param ~task, default the package's first), reads and validates its params
 from the parameter server (one line naming the key and the file, before anything is written),
-makes the env over ROS, opens a new run or the one to resume, trains, and publishes the rewards.
+makes the env over ROS (or, with ~backend direct, in-process: no sim node, for speed), opens a new run or the
+one to resume, trains, and publishes the rewards.
 The node's own private params are `NodeParams` (validated as the tasks' are: one line naming the
 key), plus ~nepisodes and ~seed, optional overrides of the YAML's. A relative or ~ results_dir is
 resolved against ~launch_dir, the folder roslaunch ran in (roslaunch runs nodes in ROS_HOME). Once
 trained, video.mp4 next to learning_curve.png shows one greedy episode of the final policy (at most
-TRAINING_VIDEO_S of sim time, rendered on the direct backend, so the ROS sim is not needed). With
-~agent dqn, ppo or sac: the runs go to <results name>-<agent>/; with ~envs N > 1 the env is N workers, each
-with a master and a sim of its own (robot_rl.workers; the launch's own sim then idles); with ~cluster ("ray" or
-an address) the workers are Ray actors on that cluster's nodes (robot_rl.workers.ray_actors), even for one env.
+TRAINING_VIDEO_S of sim time, rendered on the direct backend, so the ROS sim is not needed). ~agent is any
+agent of the registry (robot_rl.agents.registry.AGENTS; `find_agent` names them all when one is unknown): the
+default qlearn's runs go to <results name>/, every other agent's to <results name>-<agent>/. With ~envs N > 1
+the env is N workers, each with a master and a sim of its own (robot_rl.workers; the launch starts no sim then),
+or with ~backend direct a World of its own; with ~cluster ("ray" or an address) the workers are Ray actors on
+that cluster's nodes (robot_rl.workers.ray_actors), even for one env.
 
 SIGINT or SIGTERM (Ctrl-C, roslaunch shutting down) stops the run cleanly (pybullet_sim.ros.shutdown: a rospy
 shutdown, which ends every wait on the sim at once, and a request to stop, never an exception at whatever
@@ -84,6 +87,9 @@ class NodeParams(Params):
     max_steps: int = param(low=0, high=10**12, default=0, doc="a deep agent's env step budget; 0: nepisodes decides")
     envs: int = param(low=1, default=1, doc="envs; more than 1: workers with a master and a sim each")
     cluster: str = param(default="", doc="empty: the workers on this machine; ray or HOST:PORT: Ray actors there")
+    backend: str = param(choices=("ros", "direct"), default="ros",
+                         doc="ros: the env steps the launch's sim node in lockstep; direct: an in-process World "
+                             "(no sim node; the workers' too)")
 
     def check(self, source: str) -> None:
         cores = os.cpu_count() or 1
@@ -195,13 +201,19 @@ def _completed_summary(run: RunDirectory, params: TaskParams, max_steps: int) ->
 
 
 def _make_env(task: TaskSpec[Any], params: TaskParams, agent: AgentSpec, envs: int, timeout: float,
-              cluster: str) -> Any:
-    """The env(s) to train on: over this master's sim, or N workers (or Ray actors) with sims of their own."""
+              cluster: str, backend: str = "ros") -> Any:
+    """The env(s) to train on: over this master's sim, or N workers (or Ray actors) with sims of their own; with
+    backend direct, an in-process World (seeded with the run's seed), or N workers with one each."""
+    direct = backend == "direct"
     if envs == 1 and not cluster:
+        if direct:
+            rospy.loginfo("Training in-process (backend direct): the env steps a World of its own, no sim node")
+            return make_env(task, params=params, backend="direct", seed=params.seed)
         return make_env(task, params=params, backend="ros", ros_timeout=timeout)
     where = f" as Ray actors on cluster {cluster}" if cluster else ""
-    rospy.loginfo("Starting %d envs%s, each with a ROS master and a sim node of its own", envs, where)
-    env = agent.make_vector_env(task, envs, backend="ros", seed=params.seed, params=params, ros_timeout=timeout,
+    rospy.loginfo("Starting %d envs%s, each with %s", envs, where,
+                  "an in-process World (backend direct)" if direct else "a ROS master and a sim node of its own")
+    env = agent.make_vector_env(task, envs, backend=backend, seed=params.seed, params=params, ros_timeout=timeout,
                                 cluster=cluster or None)
     for i, info in enumerate(env.workers.worker_info if cluster else []):
         rospy.loginfo("Env %d/%d: a Ray actor on node %s (%s), its master %s", i + 1, envs, info["node_ip"],
@@ -227,7 +239,7 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     context = RunContext(package=task.package, task=task.name, several_tasks=len(tasks) > 1, agent=node.agent,
                          default_agent=DEFAULT_AGENT, run_path=Path(), launch_dir=node.launch_dir)
     try:
-        env = _make_env(task, params, agent, node.envs, node.timeout, node.cluster)
+        env = _make_env(task, params, agent, node.envs, node.timeout, node.cluster, node.backend)
     except (SimConnectionError, WorkerError, OSError, ClusterError) as error:  # OSError: e.g. a master refusing
         if should_stop():  # e.g. the sim failed to start and roslaunch is ending the launch
             if isinstance(error, WorkerError):

@@ -49,7 +49,7 @@ does only what is missing, so a second run starts in seconds.
   ./ws demo [cube|hopper] [policy:=NAME|run:=RUN_FOLDER] [VIDEO.mp4]  a shipped trained policy
                               (<package>/policies/NAME, default demo), or a run of yours, plays one episode, recorded
                               to VIDEO.mp4 (never overwritten; default demos/demo_<robot>.mp4, or demos/<run>.mp4,
-                              a new name if it exists), then evaluate.py's JSON (a deep agent's policy also installs
+                              a new name if it exists), then evaluate.py's JSON (an SB3 agent's policy also installs
                               requirements-deep.txt)
   ./ws setup [deep|distributed]  only the set-up (deep: also torch and stable-baselines3; distributed: also Ray)
   ./ws help                   this text and the arguments of every launch file ./ws run starts
@@ -291,7 +291,8 @@ def demo(args: list[str]) -> Plan:
         default_name = f"demo_{name}.mp4" if policy == "demo" else f"demo_{name}_{policy}.mp4"
     if args and Path(args[0]).exists():  # a video named by the caller is never overwritten
         raise WsError(f"{args[0]} exists: give another name (or delete it)")
-    needs = _requirements(DEEP) if (played / "agent.json").is_file() else []
+    # SB3's model.zip needs torch to play; a bc_dagger student (student.npz) plays in numpy
+    needs = _requirements(DEEP) if (played / "model.zip").is_file() else []
     todo = Plan(needs, ["rosrun", robot.package, "evaluate.py", "--run", str(played), "--episodes", "1", "--video",
                         os.path.realpath(args[0]) if args else "", "--video-episodes", "1"])
 

@@ -1,11 +1,14 @@
 """Ship a trained run into the repository (`<package>/policies/<name>/`): its checkpoint and results, and for a
-deep run a model.zip of the weights only.
+deep run its weights only.
 
-A run folder holds the checkpoint (tabular: qtable.json; deep: agent.json and SB3's model.zip), params.yaml,
-episodes.csv, learning_curve.png and summary.json. Shipped, SB3's model.zip keeps only its torch tensors (the
-*.pth entries, read with torch's weights_only by SB3's set_parameters) and its version: SB3's `data` entry
-(JSON with cloudpickled objects, which evaluate.py never reads) and system_info.txt are left out, and
-agent.json's model_sha256 is that of the new file. evaluate.py --run, ./ws demo and resume read it as the run.
+A run folder holds the checkpoint (tabular: qtable.json; deep: agent.json and SB3's model.zip, or a bc_dagger
+run's agent.json with its student.npz and student.json), params.yaml, episodes.csv, learning_curve.png and
+summary.json. Shipped, SB3's model.zip keeps only its torch tensors (the *.pth entries, read with torch's
+weights_only by SB3's set_parameters) and its version: SB3's `data` entry (JSON with cloudpickled objects, which
+evaluate.py never reads) and system_info.txt are left out, and agent.json's model_sha256 is that of the new file.
+A bc_dagger student is weights only already (numpy arrays and JSON numbers): its two files are copied as they
+are, and agent.json's weights_sha256 still names student.npz (checked again when the policy loads).
+evaluate.py --run, ./ws demo and resume read a shipped policy as the run.
 
 Nothing ships that evaluate.py would not play: the run is loaded as evaluate.py loads it (a deep run's model.zip
 must be the one its agent.json recorded), the policy is written to a folder of its own beside the destination and
@@ -29,6 +32,7 @@ from io import BytesIO
 from pathlib import Path
 from typing import Any
 
+from hopper_training.teacher.student import ARCHITECTURE_FILE, CHECKPOINT_FORMAT, WEIGHTS_FILE
 from robot_rl import RunFileError, TaskSpec, TrainedRun, make_env, write_bytes_atomic, write_json_atomic
 from workspace_tools.robots import ROBOTS
 
@@ -36,6 +40,7 @@ RESULTS = ("params.yaml", "episodes.csv", "learning_curve.png", "summary.json")
 TABULAR_CHECKPOINT, DEEP_CHECKPOINT, MODEL = "qtable.json", "agent.json", "model.zip"
 KEPT_ENTRIES = ("_stable_baselines3_version",)  # besides every *.pth
 RENAME_EXCHANGE, AT_FDCWD = 2, -100  # linux/fs.h, fcntl.h
+STUDENT_FILES = (WEIGHTS_FILE, ARCHITECTURE_FILE)  # a bc_dagger run's weights (hopper_training.teacher.student)
 
 
 def weights_only(model_zip: bytes, source: Path) -> bytes:
@@ -81,8 +86,7 @@ def ship_run(run: Path, destination: Path, tasks: Sequence[TaskSpec[Any]] | None
     deep = (run / DEEP_CHECKPOINT).is_file()
     if not deep and not (run / TABULAR_CHECKPOINT).is_file():
         raise ValueError(f"{run}: no checkpoint ({TABULAR_CHECKPOINT} or {DEEP_CHECKPOINT})")
-    if deep and not (run / MODEL).is_file():
-        raise ValueError(f"{run}: {DEEP_CHECKPOINT} without its {MODEL}")
+    weights = _weight_files(run) if deep else []
     if destination.is_symlink() or destination.exists() and not destination.is_dir():
         raise ValueError(f"{destination}: not a folder (a policy is shipped as a folder of its own)")
     tasks = all_tasks() if tasks is None else tasks
@@ -94,7 +98,7 @@ def ship_run(run: Path, destination: Path, tasks: Sequence[TaskSpec[Any]] | None
     destination.parent.mkdir(parents=True, exist_ok=True)
     staged = Path(tempfile.mkdtemp(prefix=f".{destination.name}.shipping-", dir=destination.parent))
     try:
-        names = _write(run, staged, deep)
+        names = _write(run, staged, deep, weights)
         try:
             load_back(staged / checkpoint_name, tasks)
         except (RunFileError, ValueError) as error:
@@ -106,12 +110,30 @@ def ship_run(run: Path, destination: Path, tasks: Sequence[TaskSpec[Any]] | None
     return names
 
 
-def _write(run: Path, folder: Path, deep: bool) -> list[str]:
+def _weight_files(run: Path) -> list[str]:
+    """The files beside a deep run's agent.json that hold its weights: SB3's model.zip, or a bc_dagger student's."""
+    try:
+        checkpoint = json.loads((run / DEEP_CHECKPOINT).read_text(encoding="utf-8"))
+    except (OSError, ValueError) as error:
+        raise ValueError(f"{run / DEEP_CHECKPOINT}: not a checkpoint ({error})") from None
+    student = isinstance(checkpoint, dict) and checkpoint.get("format") == CHECKPOINT_FORMAT
+    names = list(STUDENT_FILES) if student else [MODEL]
+    missing = [name for name in names if not (run / name).is_file()]
+    if missing:
+        raise ValueError(f"{run}: {DEEP_CHECKPOINT} without its {', '.join(missing)}")
+    return names
+
+
+def _write(run: Path, folder: Path, deep: bool, weights: Sequence[str]) -> list[str]:
     for name in RESULTS:
         shutil.copyfile(run / name, folder / name)
     if not deep:
         shutil.copyfile(run / TABULAR_CHECKPOINT, folder / TABULAR_CHECKPOINT)
         return [*RESULTS, TABULAR_CHECKPOINT]
+    if MODEL not in weights:  # a bc_dagger student: weights only as trained, its digest in agent.json unchanged
+        for name in [DEEP_CHECKPOINT, *weights]:
+            shutil.copyfile(run / name, folder / name)
+        return [*RESULTS, DEEP_CHECKPOINT, *weights]
     model = weights_only((run / MODEL).read_bytes(), run / MODEL)
     checkpoint = json.loads((run / DEEP_CHECKPOINT).read_text())
     checkpoint["model_sha256"] = hashlib.sha256(model).hexdigest()

@@ -8,13 +8,20 @@
    new samples join the aggregate and the student trains `dagger_epochs` more epochs on it.
 Every collected episode is a row of episodes.csv (its epsilon column is the chance the teacher acted: 1 for a
 behaviour cloning episode, beta for a round's). Episode i of the run resets with seed 10000 x (seed + 1) + i.
-The run's checkpoint is agent.json (the counters, the rounds' figures and the sha256 of the weights) beside
-student.npz and student.json (student.py). Runs are not resumable: a stopped one keeps its episodes, a new one
-starts over. Needs torch (requirements-deep.txt); trains on one env (envs:=1), over ROS or direct.
+The run's checkpoint is agent.json (the counters, the rounds' figures, the sha256 of the weights and the RNGs'
+states) beside student.npz and student.json (student.py) and the aggregate data, dagger_data.npz (observations
+and labels, numpy arrays read with allow_pickle=False), all as they were at the end of the last finished stage
+(BC, or a DAgger round): each stage's end writes the data, then the checkpoint, each file whole. resume:=true
+goes on from there: the episodes of a stage under way at the stop are dropped from episodes.csv and collected
+anew (with the same seeds and RNG states: a resumed run is the uninterrupted one). Needs torch
+(requirements-deep.txt); trains on one env (envs:=1), over ROS or direct.
 """
 from __future__ import annotations
 
+import base64
 import dataclasses
+import hashlib
+import io
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -29,12 +36,16 @@ from robot_rl import (
     AgentSpec,
     Episode,
     EpisodeRecord,
+    ParamError,
     RunDirectory,
+    RunFileError,
     RunLedger,
     TaskParams,
     TaskSpec,
     TrainingHooks,
     TrainingState,
+    restored_state,
+    write_bytes_atomic,
 )
 
 from .params import BcDaggerParams
@@ -47,6 +58,29 @@ class StopRequested(Exception):
 
 
 OU_DECAY, OU_SCALE = 0.8, 0.6  # the noise's correlation (~20 ms at 5 ms steps: long enough for the PD to feel it)
+DATA_FILE = "dagger_data.npz"  # the aggregate (observations, labels) at the last finished stage's end
+
+
+def data_digest(observations: np.ndarray, labels: np.ndarray) -> str:
+    """The sha256 of the aggregate's bytes (float32, C order): what the checkpoint records of dagger_data.npz."""
+    digest = hashlib.sha256(np.ascontiguousarray(observations, np.float32).tobytes())
+    digest.update(np.ascontiguousarray(labels, np.float32).tobytes())
+    return digest.hexdigest()
+
+
+def load_data(path: Path, samples: int, sha256: str) -> tuple[np.ndarray, np.ndarray]:
+    """The first `samples` rows of dagger_data.npz, whose digest must be `sha256` (a later stage's file holds the
+    checkpoint's rows first: the aggregate only grows); RunFileError naming the file if not."""
+    try:
+        with np.load(path, allow_pickle=False) as arrays:
+            observations = arrays["observations"][:samples].astype(np.float32)
+            labels = arrays["labels"][:samples].astype(np.float32)
+    except (OSError, ValueError, KeyError) as error:
+        raise RunFileError(f"{path}: not the run's aggregate data ({error})") from None
+    if len(observations) != samples or len(labels) != samples or data_digest(observations, labels) != sha256:
+        raise RunFileError(f"{path}: not the data the checkpoint recorded ({samples} samples, sha256 {sha256[:12]}"
+                           f"...): the run cannot resume; train a new run")
+    return observations, labels
 
 
 class StudentNet(nn.Module):
@@ -71,6 +105,18 @@ class StudentNet(nn.Module):
         """The inputs' mean and standard deviation (+ 1e-3, so a constant input divides by no zero)."""
         self.mean.copy_(torch.as_tensor(observations.mean(axis=0)))
         self.std.copy_(torch.as_tensor(observations.std(axis=0) + 1e-3))
+
+    def load_student(self, student: NumpyStudent) -> None:
+        """The weights and normaliser of a saved student (float32 as trained: the round trip is exact)."""
+        linears = [layer for layer in self.net if isinstance(layer, nn.Linear)]
+        if len(linears) != len(student.layers):
+            raise ValueError(f"the saved student has {len(student.layers)} layers, this run's {len(linears)}")
+        with torch.no_grad():
+            for layer, (weights, bias) in zip(linears, student.layers):
+                layer.weight.copy_(torch.as_tensor(weights, dtype=torch.float32))
+                layer.bias.copy_(torch.as_tensor(bias, dtype=torch.float32))
+            self.mean.copy_(torch.as_tensor(student.mean, dtype=torch.float32))
+            self.std.copy_(torch.as_tensor(student.std, dtype=torch.float32))
 
     def numpy_student(self) -> NumpyStudent:
         linears = [layer for layer in self.net if isinstance(layer, nn.Linear)]
@@ -134,7 +180,7 @@ class BcDaggerTrainer:
 
     def __init__(self, env: Any, task: TaskSpec[Any], params: TaskParams, agent: AgentSpec,
                  agent_params: BcDaggerParams, run: RunDirectory, hooks: TrainingHooks = DEFAULT_HOOKS,
-                 agent_config: Path | None = None):
+                 agent_config: Path | None = None, resume: bool = False):
         if not hasattr(env, "unwrapped") or not hasattr(env.unwrapped, "readings"):
             raise ValueError("agent bc_dagger trains on one env whose readings its teacher reads: envs:=1")
         agent_params.check_action_space(env.action_space, f"agent {agent.name} on {task.env_id}")
@@ -152,17 +198,69 @@ class BcDaggerTrainer:
         self.max_steps = max(1, round(agent_params.horizon_s / env.unwrapped.running_step))
         self.rounds: list[dict[str, Any]] = []
         self.beta = 1.0
+        self.observations = np.zeros((0, size), np.float32)
+        self.labels = np.zeros((0, 3), np.float32)
         self.state = TrainingState()
+        self.saved = self._snapshot(None)  # what the checkpoint holds: the last finished stage's end (none yet)
+        self.resuming = ""
+        if resume:
+            self.state = run.prepare_resume(self._restore)
+            self.resuming = (f"Resuming {run.path} after stage {len(self.rounds)} of {1 + agent_params.dagger_rounds} "
+                             f"(episode {self.state.episode}); a stage under way at the stop is collected anew")
         nepisodes = agent_params.bc_episodes + agent_params.dagger_rounds * agent_params.dagger_episodes
         self.ledger = RunLedger(run, task, nepisodes, self.state, self, hooks)
 
     # -- the Learner's side (RunLedger) --
     def save_checkpoint(self) -> None:
+        """agent.json as at the last finished stage's end (the student changes only there: its weights are that
+        stage's), whenever the ledger saves (every 10 episodes, on a stop, at the end)."""
         sha256 = self.net.numpy_student().save(self.run.path)
         self.run.checkpoint({"format": CHECKPOINT_FORMAT, "agent": self.agent.name, "task": self.task.env_id,
-                             "episode": self.state.episode, "state": dataclasses.asdict(self.state),
                              "agent_params": self.p.to_mapping(), "agent_config": self.agent_config,
-                             "weights_sha256": sha256, "rounds": self.rounds})
+                             "weights_sha256": sha256, **self.saved})
+
+    def _snapshot(self, data: dict[str, Any] | None) -> dict[str, Any]:
+        """The checkpoint's counters, rounds and RNG states now (a stage's end), with its data file's record."""
+        return {"episode": self.state.episode, "state": dataclasses.asdict(self.state),
+                "rounds": [dict(r) for r in self.rounds], "stages_done": len(self.rounds), "data": data,
+                "rng": self.rng.bit_generator.state,
+                "torch_generator": base64.b64encode(self.generator.get_state().numpy().tobytes()).decode("ascii")}
+
+    def _restore(self, checkpoint: dict[str, Any]) -> TrainingState:
+        """The run as at its checkpoint's stage end: counters, rounds, RNGs, the student and the aggregate data
+        (ValueError/KeyError/TypeError naming what is wrong; RunFileError naming another file of the run)."""
+        state = restored_state(checkpoint, CHECKPOINT_FORMAT, self.task)
+        if checkpoint["agent"] != self.agent.name:
+            raise ValueError(f"it is of agent {checkpoint['agent']!r}, this run trains {self.agent.name!r}")
+        if "stages_done" not in checkpoint:
+            raise ValueError("it is from before bc_dagger runs could resume (no stages_done): train a new run")
+        try:
+            saved = BcDaggerParams.from_mapping(checkpoint["agent_params"], "agent_params")
+        except ParamError as error:
+            raise ValueError(str(error)) from None
+        if saved != self.p:
+            here = self.p.to_mapping()
+            differ = ", ".join(f"{key} {value!r} there, {here[key]!r} here"
+                               for key, value in saved.to_mapping().items() if value != here[key])
+            raise ValueError(f"its agent params differ from this run's ({differ}): resume with the params the run "
+                             "began with")
+        stages, rounds = checkpoint["stages_done"], checkpoint["rounds"]
+        if not (isinstance(stages, int) and isinstance(rounds, list) and len(rounds) == stages
+                and 0 <= stages <= 1 + self.p.dagger_rounds):
+            raise ValueError(f"stages_done {stages!r} does not fit its {len(rounds)} rounds")
+        if stages:
+            data = checkpoint["data"]
+            self.observations, self.labels = load_data(self.run.path / DATA_FILE, int(data["samples"]),
+                                                       str(data["sha256"]))
+            self.net.load_student(NumpyStudent.load(self.run.path, checkpoint["weights_sha256"]))
+        self.rng.bit_generator.state = checkpoint["rng"]
+        generator = np.frombuffer(base64.b64decode(checkpoint["torch_generator"]), np.uint8)
+        self.generator.set_state(torch.as_tensor(generator.copy()))
+        self.rounds = [dict(r) for r in rounds]
+        self.state = state
+        self.saved = {key: checkpoint[key] for key in
+                      ("episode", "state", "rounds", "stages_done", "data", "rng", "torch_generator")}
+        return state
 
     def episode_label(self, epsilon: float) -> str:
         return f"teacher share {epsilon:.3f}"
@@ -194,8 +292,15 @@ class BcDaggerTrainer:
             self.ledger.log_progress_if_due()
         return xs, ys, collected
 
-    def _train_stage(self, stage: str, observations: np.ndarray, labels: np.ndarray, epochs: int,
+    def _train_stage(self, stage: str, xs: list[np.ndarray], ys: list[np.ndarray], epochs: int,
                      learning_rate: float, collected: list[Episode]) -> None:
+        """Join the stage's samples to the aggregate, train on it, then save the stage: the data, then the
+        checkpoint (a resume goes on from here)."""
+        self.observations = np.concatenate([self.observations, *xs])
+        self.labels = np.concatenate([self.labels, *ys])
+        observations, labels = self.observations, self.labels
+        if not self.rounds:
+            self.net.set_normaliser(observations)
         started = time.monotonic()
         mse = fit(self.net, observations, labels, epochs, learning_rate, self.p.batch_size, self.generator)
         self.rounds.append({"stage": stage, "beta": self.beta, "episodes": len(collected),
@@ -203,25 +308,30 @@ class BcDaggerTrainer:
                             "samples": len(observations), "epochs": epochs, "train_mse": mse,
                             "train_wall_s": time.monotonic() - started})
         self.log(f"{stage}: {len(observations)} samples, training error {mse:.5f}")
+        buffer = io.BytesIO()
+        np.savez(buffer, observations=observations, labels=labels)
+        write_bytes_atomic(self.run.path / DATA_FILE, buffer.getvalue())
+        self.saved = self._snapshot({"file": DATA_FILE, "samples": len(observations),
+                                     "sha256": data_digest(observations, labels)})
+        self.ledger.checkpoint()
 
     def train(self) -> dict[str, Any]:
         p = self.p
+        if self.resuming:
+            self.log(self.resuming)
         self.ledger.start()
         try:
             with self.ledger.saved_on_stop():
-                xs, ys, collected = self._collect(p.bc_episodes, None, 1.0, lambda i: p.bc_noise * i / p.bc_episodes)
-                observations, labels = np.concatenate(xs), np.concatenate(ys)
-                self.net.set_normaliser(observations)
-                self._train_stage("bc", observations, labels, p.bc_epochs, p.learning_rate, collected)
-                for round_ in range(p.dagger_rounds):
+                if not self.rounds:
+                    xs, ys, collected = self._collect(p.bc_episodes, None, 1.0,
+                                                      lambda i: p.bc_noise * i / p.bc_episodes)
+                    self._train_stage("bc", xs, ys, p.bc_epochs, p.learning_rate, collected)
+                for round_ in range(len(self.rounds) - 1, p.dagger_rounds):
                     self.beta = p.beta(round_)
                     student = self.net.numpy_student()
                     xs, ys, collected = self._collect(p.dagger_episodes, student, self.beta, lambda i: 0.0)
-                    observations = np.concatenate([observations, *xs])
-                    labels = np.concatenate([labels, *ys])
-                    self._train_stage(f"dagger {round_}", observations, labels, p.dagger_epochs,
-                                      p.dagger_learning_rate, collected)
-                    self.ledger.checkpoint()
+                    self._train_stage(f"dagger {round_}", xs, ys, p.dagger_epochs, p.dagger_learning_rate,
+                                      collected)
         except StopRequested:  # saved_on_stop saved the checkpoint and an "interrupted" summary
             return self.ledger.finish(stopped="interrupted")
         return self.ledger.close(done=True)
@@ -231,11 +341,9 @@ def make_trainer(spec: AgentSpec, env: Any, task: TaskSpec[Any], params: TaskPar
                  hooks: TrainingHooks, resume: bool = False, agent_params: Any = None, max_steps: int | None = None,
                  agent_config: Path | None = None) -> BcDaggerTrainer:
     """The agent registry's entry point of agent bc_dagger."""
-    if resume:
-        raise ValueError("a bc_dagger run cannot be resumed (its data is not saved): train a new run")
     if max_steps is not None:
         raise ValueError("agent bc_dagger's budget is its episodes (bc_episodes, dagger_rounds x dagger_episodes), "
                          "not max_steps")
     if not isinstance(agent_params, BcDaggerParams):
         raise ValueError(f"agent bc_dagger needs BcDaggerParams, got {type(agent_params).__name__}")
-    return BcDaggerTrainer(env, task, params, spec, agent_params, run, hooks, agent_config)
+    return BcDaggerTrainer(env, task, params, spec, agent_params, run, hooks, agent_config, resume)

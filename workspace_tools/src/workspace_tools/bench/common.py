@@ -35,6 +35,9 @@ ROBOTS = {"cube": BenchRobot(_default_task("cube"), 180.0, {1.0: 20, 0.0: 50}),
           "hopper": BenchRobot(_default_task("hopper"), 60.0, {1.0: 100, 0.0: 200})}
 CEILING_WARNING = 1.5  # 2 independent direct processes below this speedup: the run did not have two free cores
 DEEP_STEPS = 4000  # env steps of DQN learning (its first learning_starts only collect)
+END_TO_END_STEPS = 2000  # env steps of the hopper's end_to_end task (10 s of sim at its 5 ms), the teacher acting
+# agent bc_dagger's tiny budget: 4 episodes of at most 2 s (1600 samples at most), a few epochs of each stage
+BC_DAGGER_TINY = dict(bc_episodes=2, bc_epochs=5, dagger_rounds=1, dagger_episodes=2, dagger_epochs=5, horizon_s=2.0)
 
 
 def bench_params(robot: str, running_step: float) -> TaskParams:

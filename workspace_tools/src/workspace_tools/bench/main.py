@@ -19,6 +19,9 @@ Sections (--sections, default all):
   (World.step) and the rest (reading the sensors, the task env); and, from each env's step times
   (resets included), the most a vector env that steps 2 such envs together could gain over one
   (lockstep_speedup_bound): its every step waits for the slower env.
+  For the hopper also its end_to_end task (MonopedEndToEnd-v0, 5 ms, END_TO_END_STEPS steps) with the teacher
+  (the hopping controller) acting, as behaviour cloning collects, over ROS and direct: the env's own steps/s
+  (the controller's time per step left out) and their ratio.
 - scaling: robot_rl.vector's gymnasium vector env with N = 1, 2, 4 workers, over ROS (each worker
   with its own master and sim node) and direct; parallel efficiency = steps/s at N / (N x at 1); and
   the CPU time per env step of every process involved, which says whether a loss of efficiency is
@@ -29,6 +32,8 @@ Sections (--sections, default all):
   CEILING_WARNING, the table says that this run did not have two free cores).
 - deep: Stable-Baselines3 DQN (robot_rl/config/dqn.yaml) learning for a number of env steps on one
   env over ROS and direct; its env steps per second of wall time, gradient steps included.
+  For the hopper also agent bc_dagger on the end_to_end task, direct, on a tiny budget (BC_DAGGER_TINY): its
+  samples (env steps collected and labelled) per second of wall time, fitting and the run's files included.
 - gazebo: the tutorials' Gazebo-style step.
 - training: 100 episodes of the cube's `main.launch` training.
 - distributed: the gymnasium vector env's env steps/s with its workers as Ray actors (robot_rl.ray_workers)

@@ -19,8 +19,10 @@ from typing import Any
 
 from robot_rl import find_task
 from workspace_tools.bench.common import (
+    BC_DAGGER_TINY,
     DEEP_STEPS,
     DISTRIBUTED_ENVS,
+    END_TO_END_STEPS,
     RECOVERY_STEPS_BEFORE_LOSS,
     ROBOTS,
     SCALING_ENVS,
@@ -189,6 +191,16 @@ def _rep(tmp: Path, rep: int, robot: str, running_step: float, sections: set[str
             s[f"{backend}_lockstep_bound_2"].append(result["lockstep_speedup_bound_2"])
         _log(f"rep {rep + 1} {robot}: one env over ROS {ros['steps_per_s']:.0f}/s, "
              f"direct {direct['steps_per_s']:.0f}/s")
+        if robot == "hopper":  # the end-to-end task (issue 39): the teacher acting, every 5 ms
+            e2e = {"ros": _with_sim(Path(f"{tag}-e2e-ros"), robot, 0.0, ["end_to_end", robot, "ros", END_TO_END_STEPS]),
+                   "direct": _run_worker(Processes(Path(f"{tag}-e2e-direct")),
+                                         ["end_to_end", robot, "direct", END_TO_END_STEPS], timeout=600)}
+            for backend, result in e2e.items():
+                s[f"end_to_end_{backend}"].append(result["steps_per_s"])
+                s["end_to_end_teacher_us"].append(result["teacher_us_per_step"])
+            s["end_to_end_ratio"].append(e2e["ros"]["steps_per_s"] / e2e["direct"]["steps_per_s"])
+            _log(f"rep {rep + 1} {robot}: end_to_end, the teacher acting: over ROS {e2e['ros']['steps_per_s']:.0f}/s, "
+                 f"direct {e2e['direct']['steps_per_s']:.0f}/s")
     if "scaling" in sections:
         for backend in ("ros", "direct"):
             rates = {}
@@ -221,6 +233,11 @@ def _rep(tmp: Path, rep: int, robot: str, running_step: float, sections: set[str
         s["deep_direct"].append(direct["steps_per_s"])
         s["deep_ratio"].append(ros["steps_per_s"] / direct["steps_per_s"])
         _log(f"rep {rep + 1} {robot}: DQN over ROS {ros['steps_per_s']:.0f}/s, direct {direct['steps_per_s']:.0f}/s")
+        if robot == "hopper":  # agent bc_dagger on the end-to-end task, a tiny budget, direct
+            bc_dagger = _run_worker(Processes(Path(f"{tag}-bc_dagger")), ["bc_dagger", robot], timeout=900)
+            s["bc_dagger_samples_per_s"].append(bc_dagger["samples_per_s"])
+            _log(f"rep {rep + 1} {robot}: bc_dagger direct {bc_dagger['samples_per_s']:.0f} samples/s "
+                 f"({bc_dagger['samples']} in {bc_dagger['wall_s']:.1f} s, fitting {bc_dagger['fit_s']:.1f} s)")
     if "distributed" in sections:
         _distributed_rep(Path(f"{tag}-distributed"), rep, robot, steps, running_step, s)
     if "gazebo" in sections:
@@ -293,6 +310,12 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
                      cpu_us_per_step={"ros": {part: median(s[f"cpu_{part}"]) for part in ("client", "sim_node")},
                                       "direct": {part: median(s[f"cpu_{part}"])
                                                  for part in ("physics", "sensors_and_task")}})
+            if s.get("end_to_end_ros"):
+                r["end_to_end"] = {"steps": END_TO_END_STEPS, "actions": "the teacher's",
+                                   "ros_steps_per_s": median(s["end_to_end_ros"]),
+                                   "direct_steps_per_s": median(s["end_to_end_direct"]),
+                                   "ratio_ros_to_direct": median(s["end_to_end_ratio"]),
+                                   "teacher_us_per_step": median(s["end_to_end_teacher_us"])}
         if "scaling" in sections:
             r["scaling"] = {backend: {
                 "envs": list(SCALING_ENVS),
@@ -307,6 +330,9 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
         if "deep" in sections:
             r["dqn"] = {"steps": DEEP_STEPS, "ros_steps_per_s": median(s["deep_ros"]),
                         "direct_steps_per_s": median(s["deep_direct"]), "ratio_ros_to_direct": median(s["deep_ratio"])}
+            if s.get("bc_dagger_samples_per_s"):
+                r["bc_dagger"] = {"budget": dict(BC_DAGGER_TINY),
+                                  "direct_samples_per_s": median(s["bc_dagger_samples_per_s"])}
         if "distributed" in sections:
             r["distributed"] = {
                 "envs": list(DISTRIBUTED_ENVS),

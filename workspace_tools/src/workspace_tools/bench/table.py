@@ -52,6 +52,12 @@ def table_rows(report: dict) -> list[list[str]]:
                                  ("ros", "sim_node", "ROS: sim node (physics, service)")):
         _row(rows, report, f"CPU us/env step, {label}", lambda r, b=backend, p=part: r["cpu_us_per_step"][b][p],
              "{:.0f}")
+    _row(rows, report, "end_to_end, teacher acting, ROS, env steps/s",
+         lambda r: r["end_to_end"]["ros_steps_per_s"], "{:.0f}")
+    _row(rows, report, "end_to_end, teacher acting, direct, env steps/s",
+         lambda r: r["end_to_end"]["direct_steps_per_s"], "{:.0f}")
+    _row(rows, report, "end_to_end: ROS / direct", lambda r: r["end_to_end"]["ratio_ros_to_direct"], "{:.2f}")
+    _range_row(rows, report, "end_to_end: ROS / direct", "end_to_end_ratio")
     for backend in ("ros", "direct"):
         _row(rows, report, f"N = 2 lockstep speedup bound, {backend} step times",
              lambda r, backend=backend: r["lockstep_speedup_bound"][backend]["2"], "{:.2f}")
@@ -82,6 +88,8 @@ def table_rows(report: dict) -> list[list[str]]:
     _row(rows, report, "DQN learning direct, env steps/s", lambda r: r["dqn"]["direct_steps_per_s"], "{:.0f}")
     _row(rows, report, "DQN: ROS / direct", lambda r: r["dqn"]["ratio_ros_to_direct"], "{:.2f}")
     _range_row(rows, report, "DQN: ROS / direct", "deep_ratio")
+    _row(rows, report, "bc_dagger direct, tiny budget, samples/s",
+         lambda r: r["bc_dagger"]["direct_samples_per_s"], "{:.0f}")
     for n in DISTRIBUTED_ENVS:
         for transport, label in (("pipe", "pipe workers"), ("ray", "Ray actors")):
             _row(rows, report, f"vector env, ros, N = {n}, {label}, env steps/s",

@@ -13,7 +13,14 @@ from pathlib import Path
 from typing import Any
 
 from robot_rl import make_env
-from workspace_tools.bench.common import ROBOTS, bench_params, cpu_seconds, lockstep_speedup_bound, stat_fields
+from workspace_tools.bench.common import (
+    BC_DAGGER_TINY,
+    ROBOTS,
+    bench_params,
+    cpu_seconds,
+    lockstep_speedup_bound,
+    stat_fields,
+)
 
 
 def _make_env(robot: str, backend: Any, running_step: float):
@@ -214,6 +221,66 @@ def worker_deep(robot: str, backend: str, steps: int, running_step: float) -> di
     return {"steps_per_s": steps / elapsed}
 
 
+def worker_end_to_end(backend: str, steps: int) -> dict:
+    """The hopper's end_to_end task (MonopedEndToEnd-v0, its config's 5 ms) on one env, the teacher (the hopping
+    controller, shadow-run as bc_dagger's teacher.py) acting, as in behaviour cloning: env steps/s of the env's
+    own time (its step and reset calls; the controller's time per step is left out, and given apart)."""
+    from hopper_training.envs.end_to_end import END_TO_END
+    from hopper_training.teacher.teacher import Teacher
+    if backend == "ros":
+        import rospy
+        rospy.init_node("bench_end_to_end_client")
+    env = make_env(END_TO_END, backend=backend, seed=0)
+    try:
+        teacher = Teacher(env)
+        env_s = teacher_s = 0.0
+        start = time.perf_counter()
+        observation, _ = env.reset(seed=0)
+        teacher.reset()
+        env_s += time.perf_counter() - start
+        episodes = 1
+        for _ in range(steps):
+            start = time.perf_counter()
+            action = teacher.label(observation)
+            middle = time.perf_counter()
+            observation, _, terminated, truncated, _ = env.step(action)
+            if terminated or truncated:
+                observation, _ = env.reset()
+                teacher.reset()
+                episodes += 1
+            end = time.perf_counter()
+            teacher_s, env_s = teacher_s + middle - start, env_s + end - middle
+    finally:
+        env.close()
+    return {"steps_per_s": steps / env_s, "teacher_us_per_step": 1e6 * teacher_s / steps, "episodes": episodes}
+
+
+def worker_bc_dagger() -> dict:
+    """Agent bc_dagger (hopper_training/teacher) training on the direct backend on a tiny budget (BC_DAGGER_TINY):
+    its samples (env steps collected and labelled) per second of wall time, collection and fitting included."""
+    from hopper_training.envs.end_to_end import END_TO_END
+    from robot_rl import RunDirectory, TrainingHooks, find_agent
+    agent = find_agent("bc_dagger")
+    params = END_TO_END.default_params()
+    env = make_env(END_TO_END, params=params, backend="direct", seed=0)
+    try:
+        with tempfile.TemporaryDirectory() as results:
+            run = RunDirectory.create(Path(results), agent.results_name(END_TO_END), params.to_mapping(),
+                                      END_TO_END.metric_names, "bench", checkpoint_name=agent.checkpoint_name)
+            agent_params = agent.load_params()
+            assert agent_params is not None
+            trainer = agent.make_trainer(env, END_TO_END, params, run, TrainingHooks(log=lambda _: None),
+                                         agent_params=agent_params.with_changes("bench", **BC_DAGGER_TINY))
+            start = time.perf_counter()
+            summary = trainer.train()
+            elapsed = time.perf_counter() - start
+    finally:
+        env.close()
+    samples = summary["rounds"][-1]["samples"]
+    fitting = sum(r["train_wall_s"] for r in summary["rounds"])
+    return {"samples_per_s": samples / elapsed, "samples": samples, "wall_s": elapsed, "fit_s": fitting}
+
+
 def worker_gazebo_style(robot: str, steps: int, running_step: float) -> dict:
     """The tutorials' step over ROS (robot_rl.backends.GazeboStyleBackend: unpause, command, wait running_step
     of sim time on /clock, pause, read the latest sensors), one env, random actions: env steps/s."""
@@ -250,6 +317,10 @@ def main(argv: list[str]) -> int:
         result = worker_qlearn(robot, int(rest[0]), int(rest[1]), float(rest[2]))
     elif kind == "deep":
         result = worker_deep(robot, rest[0], int(rest[1]), float(rest[2]))
+    elif kind == "end_to_end":
+        result = worker_end_to_end(rest[0], int(rest[1]))
+    elif kind == "bc_dagger":
+        result = worker_bc_dagger()
     else:
         result = worker_gazebo_style(robot, int(rest[0]), float(rest[1]))
     print(json.dumps(result))
