@@ -197,7 +197,7 @@ def _completed_summary(run: RunDirectory, params: TaskParams, max_steps: int) ->
 def _make_env(task: TaskSpec[Any], params: TaskParams, agent: AgentSpec, envs: int, timeout: float,
               cluster: str) -> Any:
     """The env(s) to train on: over this master's sim, or N workers (or Ray actors) with sims of their own."""
-    if envs == 1 and not cluster:
+    if envs == 1 and not cluster and not agent.own_envs:
         return make_env(task, params=params, backend="ros", ros_timeout=timeout)
     where = f" as Ray actors on cluster {cluster}" if cluster else ""
     rospy.loginfo("Starting %d envs%s, each with a ROS master and a sim node of its own", envs, where)

@@ -61,6 +61,7 @@ class AgentSpec:
     params: str | None = None        # None: the agent's params are the task's
     fit: str = ""                    # "module:attr" of check_fit(action_space, observation_space, n_envs,
                                      # agent_params, source): ParamError when the agent cannot train such envs
+    own_envs: bool = False           # its vector_env makes its envs even for envs:=1 (RLlib's env runners)
 
     def results_name(self, task: TaskSpec[Any]) -> str:
         return task.results_name + self.results_suffix
@@ -147,6 +148,11 @@ AGENTS: dict[str, AgentSpec] = {spec.name: spec for spec in (
               vector_env="robot_rl.workers.vector_env:make_vector_env",
               policy="hopper_training.teacher.student:greedy_policy",
               params="hopper_training.teacher.params:BcDaggerParams"),
+    AgentSpec("rllib_ppo", "RLlib's PPO, its env runners on Ray", DEEP_CHECKPOINT, "-rllib_ppo", needs_deep=True,
+              trainer="robot_rl.agents.rllib.trainer:make_trainer",
+              vector_env="robot_rl.agents.rllib.runners:make_rllib_envs",
+              policy="robot_rl.agents.rllib.policy:greedy_policy", params="robot_rl.agents.rllib.params:RllibPpoParams",
+              own_envs=True),
 )}
 
 
