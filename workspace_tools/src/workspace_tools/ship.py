@@ -1,7 +1,8 @@
 """Ship a trained run into the repository (`<package>/policies/<name>/`): its checkpoint and results, and for a
 deep run a model.zip of the weights only.
 
-A run folder holds the checkpoint (tabular: qtable.json; deep: agent.json and SB3's model.zip), params.yaml,
+A run folder holds the checkpoint (tabular: qtable.json; deep: agent.json and SB3's model.zip, or agent rllib_ppo's
+numpy weights rllib_module.npz, shipped as they are), params.yaml,
 episodes.csv, learning_curve.png and summary.json. Shipped, SB3's model.zip keeps only its torch tensors (the
 *.pth entries, read with torch's weights_only by SB3's set_parameters) and its version: SB3's `data` entry
 (JSON with cloudpickled objects, which evaluate.py never reads) and system_info.txt are left out, and
@@ -34,6 +35,7 @@ from workspace_tools.robots import ROBOTS
 
 RESULTS = ("params.yaml", "episodes.csv", "learning_curve.png", "summary.json")
 TABULAR_CHECKPOINT, DEEP_CHECKPOINT, MODEL = "qtable.json", "agent.json", "model.zip"
+RLLIB_WEIGHTS = "rllib_module.npz"  # agent rllib_ppo's weights (numpy arrays; agent.json records their sha256)
 KEPT_ENTRIES = ("_stable_baselines3_version",)  # besides every *.pth
 RENAME_EXCHANGE, AT_FDCWD = 2, -100  # linux/fs.h, fcntl.h
 
@@ -81,7 +83,7 @@ def ship_run(run: Path, destination: Path, tasks: Sequence[TaskSpec[Any]] | None
     deep = (run / DEEP_CHECKPOINT).is_file()
     if not deep and not (run / TABULAR_CHECKPOINT).is_file():
         raise ValueError(f"{run}: no checkpoint ({TABULAR_CHECKPOINT} or {DEEP_CHECKPOINT})")
-    if deep and not (run / MODEL).is_file():
+    if deep and not (run / MODEL).is_file() and not (run / RLLIB_WEIGHTS).is_file():
         raise ValueError(f"{run}: {DEEP_CHECKPOINT} without its {MODEL}")
     if destination.is_symlink() or destination.exists() and not destination.is_dir():
         raise ValueError(f"{destination}: not a folder (a policy is shipped as a folder of its own)")
@@ -112,6 +114,10 @@ def _write(run: Path, folder: Path, deep: bool) -> list[str]:
     if not deep:
         shutil.copyfile(run / TABULAR_CHECKPOINT, folder / TABULAR_CHECKPOINT)
         return [*RESULTS, TABULAR_CHECKPOINT]
+    if not (run / MODEL).is_file():  # agent rllib_ppo's numpy weights: weights only already, shipped as they are
+        shutil.copyfile(run / RLLIB_WEIGHTS, folder / RLLIB_WEIGHTS)
+        shutil.copyfile(run / DEEP_CHECKPOINT, folder / DEEP_CHECKPOINT)
+        return [*RESULTS, DEEP_CHECKPOINT, RLLIB_WEIGHTS]
     model = weights_only((run / MODEL).read_bytes(), run / MODEL)
     checkpoint = json.loads((run / DEEP_CHECKPOINT).read_text())
     checkpoint["model_sha256"] = hashlib.sha256(model).hexdigest()

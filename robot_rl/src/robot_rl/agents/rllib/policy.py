@@ -32,7 +32,7 @@ ACTOR, HEAD = "encoder.actor_encoder.net.mlp", "pi.net.mlp"
 
 def npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:
     buffer = io.BytesIO()
-    np.savez(buffer, **arrays)
+    np.savez(buffer, **arrays)  # type: ignore[arg-type]
     return buffer.getvalue()
 
 
@@ -104,10 +104,11 @@ class NumpyPpoPolicy:
         out = weights @ h + bias
         space = self.action_space
         if isinstance(space, gymnasium.spaces.Discrete):
-            return int(space.start + int(np.argmax(out)))
+            return int(space.start) + int(np.argmax(out))
         assert isinstance(space, gymnasium.spaces.Box)
-        mean = np.clip(out[:out.shape[0] // 2], -1.0, 1.0)
-        action = space.low + (mean + 1.0) * (space.high - space.low) / 2.0
+        mean: np.ndarray = np.clip(out[:out.shape[0] // 2], -1.0, 1.0)
+        low, high = np.asarray(space.low, np.float64), np.asarray(space.high, np.float64)
+        action = low + (mean + 1.0) * (high - low) / 2.0
         return action.reshape(space.shape).astype(space.dtype)
 
 

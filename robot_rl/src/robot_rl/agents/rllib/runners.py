@@ -18,12 +18,15 @@ by runner, each runner's in the order they ended: the same run repeats the same 
 """
 from __future__ import annotations
 
+import contextlib
+import logging
 import os
 import secrets
 import shutil
 import signal
 import sys
 import tempfile
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -37,6 +40,7 @@ from ...workers.base import WorkerRecipe, check_workers, worker_env, worker_seed
 
 ENV_NAME = "robot_rl_task"   # the name of the env creator registered with Ray Tune
 TOKEN = secrets.token_hex(32)  # the local Ray's token: one per process, as Ray reads a driver's token once
+RUNNER_EXIT_TIMEOUT = 15.0  # s for the runners of a Ray started here to end after it shut down
 _ENDED: list[dict[str, Any]] = []  # on a runner: the episodes ended since the driver last took them
 
 
@@ -46,6 +50,7 @@ class EndedEpisode:
 
     runner: int        # RLlib's worker_index, 1..N
     node: str          # the runner's node's address
+    node_id: str       # Ray's id of that node (nodes on one machine share its address)
     steps: int
     return_: float     # the task's (not scaled)
     terminated: bool
@@ -61,7 +66,7 @@ class EpisodeTap(gymnasium.Wrapper[Any, Any, Any, Any]):
         super().__init__(env)
         import ray
         self.runner, self.scale, self.sim, self.log_dir = runner, scale, sim, log_dir
-        self.node = ray.util.get_node_ip_address()
+        self.node, self.node_id = ray.util.get_node_ip_address(), ray.get_runtime_context().get_node_id()
         self.running_step = float(getattr(env.unwrapped, "running_step", 0.0))
         self.steps, self.total = 0, 0.0
 
@@ -74,8 +79,8 @@ class EpisodeTap(gymnasium.Wrapper[Any, Any, Any, Any]):
         self.steps += 1
         self.total += float(reward)
         if terminated or truncated:
-            _ENDED.append({"runner": self.runner, "node": self.node, "steps": self.steps, "return_": self.total,
-                           "terminated": bool(terminated),
+            _ENDED.append({"runner": self.runner, "node": self.node, "node_id": self.node_id, "steps": self.steps,
+                           "return_": self.total, "terminated": bool(terminated),
                            "duration": episode_duration(info, self.steps, self.running_step), "info": dict(info)})
         return observation, float(reward) * self.scale, terminated, truncated, info
 
@@ -144,7 +149,7 @@ def _start_local_ray(temp_dir: Path, cpus: int) -> None:
         import ray
         ray.init(address="local", num_cpus=cpus, include_dashboard=False, _temp_dir=str(ray_cluster.ray_dir(temp_dir)),
                  _node_ip_address="127.0.0.1", object_store_memory=ray_cluster.OBJECT_STORE_BYTES,
-                 log_to_driver=False, logging_level="ERROR")
+                 log_to_driver=False, logging_level=logging.ERROR)
         ray_cluster.make_private(temp_dir)
     except BaseException:
         shutil.rmtree(temp_dir, ignore_errors=True)
@@ -213,14 +218,31 @@ class RllibEnvs:
             return
         self.closed = True
         import ray
+        pids: list[int] = []
         try:
             if self.algorithm is not None:
+                if self._temp_dir is not None:  # the runners are processes of this machine's Ray, started here
+                    pids = [pid for _, _, pid in self.runner_info()]
                 self.algorithm.stop()
         finally:
             if self._connected and ray.is_initialized():
                 ray.shutdown()
+            _end_processes(pids)
             if self._temp_dir is not None:
                 shutil.rmtree(self._temp_dir, ignore_errors=True)
+
+
+def _end_processes(pids: list[int], timeout: float = RUNNER_EXIT_TIMEOUT) -> None:
+    """Wait (bounded) for the runners of the Ray this process started to end, as they do once their raylet is gone
+    (each ends its env's master and sim node by their death signal); SIGKILL those still there after `timeout`."""
+    deadline = time.monotonic() + timeout
+    while pids and time.monotonic() < deadline:
+        pids = [pid for pid in pids if Path(f"/proc/{pid}").exists()]
+        if pids:
+            time.sleep(0.05)
+    for pid in pids:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
 
 
 def make_rllib_envs(task: TaskSpec[Any], n: int, backend: str, seed: int, params: TaskParams,

@@ -45,7 +45,7 @@ from .policy import (
 from .runners import EndedEpisode, RllibEnvs
 
 RUNNERS_CSV = "runners.csv"
-RUNNERS_COLUMNS = ("episode", "runner", "node")
+RUNNERS_COLUMNS = ("episode", "runner", "node", "node_id")
 MODULE = "default_policy"  # RLlib's DEFAULT_MODULE_ID
 
 
@@ -179,7 +179,8 @@ class RllibPpoTrainer:
         episode = Episode(steps=ended.steps, return_=ended.return_, terminated=ended.terminated,
                           duration=ended.duration, info=ended.info)
         with open(self.runners_csv, "a", encoding="utf-8", newline="") as f:
-            csv.writer(f, lineterminator="\n").writerow([self.state.episode + 1, ended.runner, ended.node])
+            row = [self.state.episode + 1, ended.runner, ended.node, ended.node_id]
+            csv.writer(f, lineterminator="\n").writerow(row)
         self.ledger.episode_done(episode, ended.return_, math.nan, ended.runner - 1)
 
     def _done(self) -> bool:
