@@ -2,7 +2,8 @@
 On a Ray it starts itself on this machine: a short run writes every results file (episodes.csv with every
 episode once, runners.csv naming each episode's runner), resumes from its weights-only checkpoint, and
 evaluate.py plays it without Ray or torch; on a two-node loopback cluster (workspace_tools.ray_cluster) whose head
-has no CPU, the runners run on the second node. Each run is a driver process of its own, marked, so that no
+has no CPU, the runners run on the second node; a runner's node killed mid-run, RLlib restarts its runner on the
+other node and the run completes with every episode once. Each run is a driver process of its own, marked, so that no
 process of it may be left."""
 import csv
 import hashlib
@@ -10,6 +11,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 import uuid
 from pathlib import Path
 
@@ -53,14 +55,23 @@ print(json.dumps({"run": str(run.path), "summary": summary, "lines": lines, "dri
 """
 
 
-def drive(tmp_path, nepisodes, resume=False, cluster="", env=None):
-    """One driver process (marked); returns its JSON and asserts that nothing of it is left."""
+def drive(tmp_path, nepisodes, resume=False, cluster="", env=None, meanwhile=None):
+    """One driver process (marked); `meanwhile()` runs while it trains; returns its JSON and asserts that nothing of
+    it is left."""
     mark = uuid.uuid4().hex
     environment = {**os.environ, **(env or {}), MARK: mark}
     environment.pop("ROBOT_RL_CLUSTER_DIR", None)  # the test's cluster's token, not the workspace's
-    done = subprocess.run([sys.executable, "-c", DRIVER, str(tmp_path / "results"), str(nepisodes),
-                           "resume" if resume else "new", cluster], env=environment, capture_output=True, text=True,
-                          timeout=RUN_TIMEOUT)
+    with subprocess.Popen([sys.executable, "-c", DRIVER, str(tmp_path / "results"), str(nepisodes),
+                           "resume" if resume else "new", cluster], env=environment, stdout=subprocess.PIPE,
+                          stderr=subprocess.PIPE, text=True) as driver:
+        try:
+            if meanwhile is not None:
+                meanwhile()
+            stdout, stderr = driver.communicate(timeout=RUN_TIMEOUT)
+        finally:
+            if driver.poll() is None:
+                driver.kill()
+    done = subprocess.CompletedProcess(driver.args, driver.returncode, stdout, stderr)
     assert done.returncode == 0, done.stderr[-3000:]
     left = processes_with(MARK, mark)
     assert left == [], f"processes of the run left: {[process_name(p) for p in left]}"
@@ -120,3 +131,48 @@ def test_on_a_two_node_cluster_the_runners_run_on_the_node_with_cpus(tmp_path):
     assert {r["runner"] for r in rows} == {"1", "2"}
     assert {r["node_id"] for r in rows} and result["driver_node"] not in {r["node_id"] for r in rows}, \
         "the head has no CPU: every runner on the second node"
+
+
+def raylet_node_id(cluster, i):
+    """Ray's id of the cluster's node i (its raylet's --node_id)."""
+    leader = cluster.processes_started[i].pid
+    for pid in cluster.processes():
+        try:
+            session = int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[3])
+        except OSError:
+            continue
+        command = process_name(pid)
+        if session == leader and "/raylet " in command:
+            return command.split("--node_id=", 1)[1].split()[0]
+    raise AssertionError(f"no raylet of node {i}")
+
+
+def test_a_runner_s_node_lost_mid_run_the_run_completes_with_every_episode_once(tmp_path):
+    with LoopbackCluster(tmp_path / "cluster", nodes=3, head_cpus=0, cpus_per_node=2) as cluster:
+        nodes = {raylet_node_id(cluster, i): i for i in (1, 2)}
+        results = tmp_path / "results" / "moving_cube-rllib_ppo"
+        killed = []
+
+        def kill_a_runner_s_node():
+            deadline = time.monotonic() + RUN_TIMEOUT
+            while time.monotonic() < deadline:  # until the first episode is written: the runners are up
+                written = [folder / "runners.csv" for folder in results.glob("2*")] if results.is_dir() else []
+                rows = runners(written[0].parent) if written and written[0].is_file() else []
+                if rows:
+                    killed.append(nodes[rows[0]["node_id"]])
+                    cluster.kill_node(killed[0])
+                    return
+                time.sleep(0.05)
+            raise AssertionError(f"no episode written within {RUN_TIMEOUT} s")
+        result = drive(tmp_path, 16, cluster=cluster.address, env=cluster.driver_environment,
+                       meanwhile=kill_a_runner_s_node)
+        left = cluster.close()
+    assert left == [], f"processes of the cluster left: {[process_name(p) for p in left]}"
+    assert result["summary"]["completed"] and result["summary"]["episodes"] == 16
+    run = Path(result["run"])
+    with open(run / "episodes.csv") as f:
+        assert [int(r["episode"]) for r in csv.DictReader(f)] == list(range(1, 17)), "every episode once"
+    rows = runners(run)
+    assert [int(r["episode"]) for r in rows] == list(range(1, 17))
+    lost = [node for node, i in nodes.items() if i == killed[0]][0]
+    assert any(r["node_id"] != lost for r in rows[1:]), "episodes after the loss came from the other node"

@@ -31,6 +31,7 @@ from ...params import ParamError, Params, TaskParams
 from ...runs.ledger import DEFAULT_HOOKS, RunLedger, TrainingHooks, TrainingState, format_duration, restored_state
 from ...runs.results import EpisodeRecord, RunDirectory, RunFileError, aggregate
 from ...task import Episode, TaskSpec
+from ...workers.base import WorkerError
 from ..registry import AgentSpec
 from .params import RllibPpoParams, ppo_config
 from .policy import (
@@ -71,7 +72,12 @@ class RllibPpoTrainer:
         config = ppo_config(agent_params, envs.register(), envs.env_config(agent_params.reward_scale),
                             envs.single_observation_space, envs.single_action_space, envs.num_envs, params.gamma,
                             params.seed)
-        self.algorithm = config.build_algo()
+        try:
+            self.algorithm = config.build_algo()
+        except Exception as error:  # noqa: BLE001 (RLlib raises Ray's errors, or the env's from a runner)
+            text = " ".join(str(error).split())
+            raise WorkerError(f"RLlib could not start its {envs.num_envs} env runners: {type(error).__name__}: "
+                              f"{text[:400]}{'...' if len(text) > 400 else ''}") from None
         envs.attach(self.algorithm)
         for runner, node, pid in envs.runner_info():
             self.log(f"env runner {runner}/{envs.num_envs}: pid {pid} on node {node}")
