@@ -12,9 +12,11 @@ from workspace_tools.paths import REPO
 from workspace_tools.pytest_markers import REQUIREMENTS, markers_of, module_markers, requirements_of
 
 # What in a test's source needs the optional packages: the deep agents (robot_rl.agents.sb3, SB3, torch) and Ray
-# (robot_rl.workers' Ray actors and cluster), imported by module, or by a name robot_rl's face loads from them.
-USES = {"deep": re.compile(r"^ *(import|from) (torch|stable_baselines3)\b|robot_rl\.agents\.sb3", re.M),
-        "ray": re.compile(r"^ *(import ray|from ray)|robot_rl\.workers\.(cluster|ray_actors)|ray_cluster", re.M)}
+# (robot_rl.workers' Ray actors and cluster; RLlib's agent robot_rl.agents.rllib needs both), imported by module, or
+# by a name robot_rl's face loads from them.
+USES = {"deep": re.compile(r"^ *(import|from) (torch|stable_baselines3)\b|robot_rl\.agents\.(sb3|rllib)", re.M),
+        "ray": re.compile(r"^ *(import ray|from ray)|robot_rl\.workers\.(cluster|ray_actors)|ray_cluster"
+                          r"|robot_rl\.agents\.rllib", re.M)}
 FACE_MODULES = {"deep": ("robot_rl.agents.sb3",), "ray": ("robot_rl.workers.cluster", "robot_rl.workers.ray_actors")}
 
 

@@ -205,7 +205,7 @@ def _make_env(task: TaskSpec[Any], params: TaskParams, agent: AgentSpec, envs: i
     """The env(s) to train on: over this master's sim, or N workers (or Ray actors) with sims of their own; with
     backend direct, an in-process World (seeded with the run's seed), or N workers with one each."""
     direct = backend == "direct"
-    if envs == 1 and not cluster:
+    if envs == 1 and not cluster and not agent.own_envs:
         if direct:
             rospy.loginfo("Training in-process (backend direct): the env steps a World of its own, no sim node")
             return make_env(task, params=params, backend="direct", seed=params.seed)

@@ -92,11 +92,14 @@ def _last(args: Sequence[str], name: str) -> str:
 
 
 def _agent_needs(args: Sequence[str]) -> list[str]:
-    """requirements-deep.txt when agent:=NAME names a deep agent (robot_rl.agents says)."""
+    """requirements-deep.txt when agent:=NAME names a deep agent, and requirements-distributed.txt when it needs Ray
+    (RLlib's) (robot_rl.agents says)."""
     agent = _last(args, "agent")
-    if agent and subprocess.run([sys.executable, "-m", "robot_rl.agents", "needs-deep", agent]).returncode == 0:
-        return _requirements(DEEP)
-    return []
+    if not agent:
+        return []
+    needs = [file for file, question in ((DEEP, "needs-deep"), (DISTRIBUTED, "needs-ray"))
+             if subprocess.run([sys.executable, "-m", "robot_rl.agents", question, agent]).returncode == 0]
+    return _requirements(*needs) if needs else []
 
 
 def _robot(name: str, hint: str = "") -> str:

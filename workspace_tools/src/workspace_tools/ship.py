@@ -1,14 +1,15 @@
 """Ship a trained run into the repository (`<package>/policies/<name>/`): its checkpoint and results, and for a
 deep run its weights only.
 
-A run folder holds the checkpoint (tabular: qtable.json; deep: agent.json and SB3's model.zip, or a bc_dagger
-run's agent.json with its student.npz and student.json), params.yaml, episodes.csv, learning_curve.png and
-summary.json. Shipped, SB3's model.zip keeps only its torch tensors (the *.pth entries, read with torch's
-weights_only by SB3's set_parameters) and its version: SB3's `data` entry (JSON with cloudpickled objects, which
-evaluate.py never reads) and system_info.txt are left out, and agent.json's model_sha256 is that of the new file.
-A bc_dagger student is weights only already (numpy arrays and JSON numbers): its two files are copied as they
-are, and agent.json's weights_sha256 still names student.npz (checked again when the policy loads).
-evaluate.py --run, ./ws demo and resume read a shipped policy as the run.
+A run folder holds the checkpoint (tabular: qtable.json; deep: agent.json and SB3's model.zip, a bc_dagger
+run's agent.json with its student.npz and student.json, or agent rllib_ppo's agent.json with its numpy weights
+rllib_module.npz), params.yaml, episodes.csv, learning_curve.png and summary.json. Shipped, SB3's model.zip keeps
+only its torch tensors (the *.pth entries, read with torch's weights_only by SB3's set_parameters) and its version:
+SB3's `data` entry (JSON with cloudpickled objects, which evaluate.py never reads) and system_info.txt are left
+out, and agent.json's model_sha256 is that of the new file. A bc_dagger student and an rllib_ppo module are weights
+only already (numpy arrays and JSON numbers): their files are copied as they are, and agent.json's weights_sha256
+still names them (checked again when the policy loads). evaluate.py --run, ./ws demo and resume read a shipped
+policy as the run.
 
 Nothing ships that evaluate.py would not play: the run is loaded as evaluate.py loads it (a deep run's model.zip
 must be the one its agent.json recorded), the policy is written to a folder of its own beside the destination and
@@ -38,6 +39,7 @@ from workspace_tools.robots import ROBOTS
 
 RESULTS = ("params.yaml", "episodes.csv", "learning_curve.png", "summary.json")
 TABULAR_CHECKPOINT, DEEP_CHECKPOINT, MODEL = "qtable.json", "agent.json", "model.zip"
+RLLIB_WEIGHTS = "rllib_module.npz"  # agent rllib_ppo's weights (numpy arrays; agent.json records their sha256)
 KEPT_ENTRIES = ("_stable_baselines3_version",)  # besides every *.pth
 RENAME_EXCHANGE, AT_FDCWD = 2, -100  # linux/fs.h, fcntl.h
 STUDENT_FILES = (WEIGHTS_FILE, ARCHITECTURE_FILE)  # a bc_dagger run's weights (hopper_training.teacher.student)
@@ -111,13 +113,15 @@ def ship_run(run: Path, destination: Path, tasks: Sequence[TaskSpec[Any]] | None
 
 
 def _weight_files(run: Path) -> list[str]:
-    """The files beside a deep run's agent.json that hold its weights: SB3's model.zip, or a bc_dagger student's."""
+    """The files beside a deep run's agent.json that hold its weights: SB3's model.zip, a bc_dagger student's or
+    rllib_ppo's rllib_module.npz."""
     try:
         checkpoint = json.loads((run / DEEP_CHECKPOINT).read_text(encoding="utf-8"))
     except (OSError, ValueError) as error:
         raise ValueError(f"{run / DEEP_CHECKPOINT}: not a checkpoint ({error})") from None
     student = isinstance(checkpoint, dict) and checkpoint.get("format") == CHECKPOINT_FORMAT
-    names = list(STUDENT_FILES) if student else [MODEL]
+    rllib = not student and not (run / MODEL).is_file() and (run / RLLIB_WEIGHTS).is_file()
+    names = list(STUDENT_FILES) if student else [RLLIB_WEIGHTS] if rllib else [MODEL]
     missing = [name for name in names if not (run / name).is_file()]
     if missing:
         raise ValueError(f"{run}: {DEEP_CHECKPOINT} without its {', '.join(missing)}")
@@ -130,7 +134,7 @@ def _write(run: Path, folder: Path, deep: bool, weights: Sequence[str]) -> list[
     if not deep:
         shutil.copyfile(run / TABULAR_CHECKPOINT, folder / TABULAR_CHECKPOINT)
         return [*RESULTS, TABULAR_CHECKPOINT]
-    if MODEL not in weights:  # a bc_dagger student: weights only as trained, its digest in agent.json unchanged
+    if MODEL not in weights:  # a bc_dagger student or rllib_ppo's module: weights only as trained
         for name in [DEEP_CHECKPOINT, *weights]:
             shutil.copyfile(run / name, folder / name)
         return [*RESULTS, DEEP_CHECKPOINT, *weights]

@@ -1,4 +1,5 @@
-"""python -m robot_rl.agents needs-deep NAME: exit 0 if agent NAME needs requirements-deep.txt (./ws)."""
+"""python -m robot_rl.agents needs-deep|needs-ray NAME: exit 0 if agent NAME needs requirements-deep.txt
+(requirements-distributed.txt) (./ws)."""
 import sys
 
 from .registry import main

@@ -9,6 +9,7 @@ greedy policy, and whether it needs requirements-deep.txt. The implementation is
 Adding an agent: one module with its trainer and policy loader, one line in AGENTS.
 
   python -m robot_rl.agents needs-deep NAME   exit 0 if agent NAME needs requirements-deep.txt (./ws)
+  python -m robot_rl.agents needs-ray NAME    exit 0 if agent NAME needs requirements-distributed.txt (./ws)
 """
 from __future__ import annotations
 
@@ -61,6 +62,8 @@ class AgentSpec:
     params: str | None = None        # None: the agent's params are the task's
     fit: str = ""                    # "module:attr" of check_fit(action_space, observation_space, n_envs,
                                      # agent_params, source): ParamError when the agent cannot train such envs
+    own_envs: bool = False           # its vector_env makes its envs even for envs:=1 (RLlib's env runners)
+    needs_ray: bool = False          # needs requirements-distributed.txt (Ray, RLlib) even without cluster:=
 
     def results_name(self, task: TaskSpec[Any]) -> str:
         return task.results_name + self.results_suffix
@@ -147,6 +150,11 @@ AGENTS: dict[str, AgentSpec] = {spec.name: spec for spec in (
               vector_env="robot_rl.workers.vector_env:make_vector_env",
               policy="hopper_training.teacher.student:greedy_policy",
               params="hopper_training.teacher.params:BcDaggerParams"),
+    AgentSpec("rllib_ppo", "RLlib's PPO, its env runners on Ray", DEEP_CHECKPOINT, "-rllib_ppo", needs_deep=True,
+              trainer="robot_rl.agents.rllib.trainer:make_trainer",
+              vector_env="robot_rl.agents.rllib.runners:make_rllib_envs",
+              policy="robot_rl.agents.rllib.policy:greedy_policy", params="robot_rl.agents.rllib.params:RllibPpoParams",
+              own_envs=True, needs_ray=True),
 )}
 
 
@@ -174,6 +182,8 @@ def agent_of(checkpoint: dict[str, Any]) -> AgentSpec:
 def main(argv: Sequence[str]) -> int:
     if len(argv) == 2 and argv[0] == "needs-deep":
         return 0 if argv[1] in AGENTS and AGENTS[argv[1]].needs_deep else 1
-    print("usage: python -m robot_rl.agents needs-deep NAME", file=sys.stderr)
+    if len(argv) == 2 and argv[0] == "needs-ray":
+        return 0 if argv[1] in AGENTS and AGENTS[argv[1]].needs_ray else 1
+    print("usage: python -m robot_rl.agents needs-deep|needs-ray NAME", file=sys.stderr)
     return 2
 

@@ -1,0 +1,128 @@
+"""Agent rllib_ppo without a Ray cluster: its YAML to RLlib's PPOConfig, an unknown key refused in one line, the
+order the runners' episodes go into episodes.csv, and the numpy policy (what evaluate.py plays) against the torch
+RLModule RLlib builds from the same config, and its weights file checked by sha256."""
+import dataclasses
+import re
+
+import gymnasium
+import numpy as np
+import pytest
+
+from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
+from robot_rl import AGENTS, ParamError, RunFileError, find_agent
+from robot_rl.agents.rllib.params import RllibPpoParams, ppo_config
+from robot_rl.agents.rllib.policy import NumpyPpoPolicy, load_weights, save_weights
+from robot_rl.agents.rllib.runners import in_order
+
+pytestmark = [pytest.mark.deep, pytest.mark.ray]  # RLlib (requirements-distributed.txt) on torch
+
+AGENT = find_agent("rllib_ppo")
+
+
+def config(params=None, runners=3, action_space=None):
+    params = params or AGENT.load_params()
+    action_space = action_space or gymnasium.spaces.Discrete(5)
+    return ppo_config(params, "robot_rl_task", {"x": 1}, gymnasium.spaces.Box(-1.0, 1.0, (6,), np.float32),
+                      action_space, runners, gamma=0.95, seed=7)
+
+
+def test_the_yaml_becomes_rllib_s_ppo_config_on_the_new_api_stack():
+    params = AGENT.load_params()
+    assert isinstance(params, RllibPpoParams) and AGENT.config_for(ONE_DISK_WALK) == AGENT.config_path
+    c = config(params.with_changes("test", rollout_fragment_length=200, batch_size=50, n_epochs=3, ent_coef=0.01))
+    assert c.enable_rl_module_and_learner and c.enable_env_runner_and_connector_v2, "the new API stack"
+    assert (c.num_env_runners, c.num_envs_per_env_runner, c.num_cpus_per_env_runner) == (3, 1, 1)
+    assert c.num_learners == 0, "the learner on the driver"
+    assert (c.rollout_fragment_length, c.train_batch_size_per_learner, c.minibatch_size, c.num_epochs) == \
+        (200, 600, 50, 3), "one fragment of each runner per update"
+    assert (c.gamma, c.lr, c.lambda_, c.clip_param, c.entropy_coeff, c.vf_loss_coeff, c.grad_clip) == \
+        (0.95, params.learning_rate, params.gae_lambda, params.clip_range, 0.01, params.vf_coef, params.max_grad_norm)
+    assert not c.use_kl_loss, "SB3's PPO has no KL penalty"
+    model = c.model_config
+    assert model["fcnet_hiddens"] == [params.hidden_units] * params.hidden_layers
+    assert (model["fcnet_activation"], model["head_fcnet_hiddens"], model["vf_share_layers"]) == ("tanh", [], False)
+    assert (c.seed, c.env, c.env_config) == (7, "robot_rl_task", {"x": 1})
+    assert c.restart_failed_env_runners and c.max_num_env_runner_restarts == params.max_runner_restarts
+
+
+def test_an_unknown_key_or_a_bad_value_is_refused_in_one_line(tmp_path):
+    path = tmp_path / "rllib_ppo.yaml"
+    path.write_text(AGENT.config_path.read_text() + "num_env_runners: 4\n")
+    with pytest.raises(ParamError, match=rf"^{re.escape(str(path))}: unknown parameter 'num_env_runners' "
+                                         r"\(known: hidden_layers, "):
+        AGENT.load_params(path)
+    path.write_text(AGENT.config_path.read_text().replace("fragment_length: 1024", "fragment_length: 0"))
+    with pytest.raises(ParamError, match="rollout_fragment_length") as error:
+        AGENT.load_params(path)
+    assert "\n" not in str(error.value)
+    with pytest.raises(ParamError, match=r"batch_size 64 is more than the train batch \(rollout_fragment_length 16 x "
+                                         r"2 runners\)$"):
+        AGENT.load_params().with_changes("t", rollout_fragment_length=16).check_batch(2, "agent rllib_ppo")
+    with pytest.raises(ParamError, match="acts in Discrete or Box spaces"):
+        AGENT.load_params().check_action_space(gymnasium.spaces.MultiBinary(3), "agent rllib_ppo")
+
+
+def test_the_agent_is_registered_with_weights_only_checkpoints():
+    from robot_rl.agents.registry import main
+    assert "rllib_ppo" in AGENTS and AGENT.needs_deep and AGENT.own_envs and AGENT.needs_ray
+    assert [main(["needs-ray", name]) for name in ("rllib_ppo", "ppo", "x")] == [0, 1, 1], "./ws installs Ray for it"
+    assert AGENT.results_name(ONE_DISK_WALK) == "moving_cube-rllib_ppo" and AGENT.checkpoint_name == "agent.json"
+
+
+def ended(runner, steps):
+    return {"runner": runner, "node": "127.0.0.1", "node_id": "n", "steps": steps, "return_": float(steps),
+            "terminated": False, "duration": 0.1, "info": {}}
+
+
+def test_episodes_go_in_by_runner_each_runner_s_in_the_order_they_ended():
+    batches = [[ended(2, 5), ended(2, 3)], [ended(1, 7), ended(1, 2)], [], [ended(3, 1)]]  # one batch per runner
+    order = [(e.runner, e.steps) for e in in_order(batches)]
+    assert order == [(1, 7), (1, 2), (2, 5), (2, 3), (3, 1)]
+    assert [(e.runner, e.steps) for e in in_order(batches[::-1])] == order, \
+        "the order the runners' answers arrive in changes nothing"
+
+
+def torch_module(action_space):
+    c = config(runners=1, action_space=action_space)
+    spec = dataclasses.replace(c.get_default_rl_module_spec(), observation_space=c.observation_space,
+                               action_space=action_space, model_config=c.model_config)
+    return spec.build()
+
+
+@pytest.mark.parametrize("action_space", [gymnasium.spaces.Discrete(5),
+                                          gymnasium.spaces.Box(np.array([-2.0, 0.0], np.float32),
+                                                               np.array([2.0, 1.0], np.float32))],
+                         ids=["discrete", "box"])
+def test_the_numpy_policy_acts_as_rllib_s_module_greedily(tmp_path, action_space):
+    import torch
+    module = torch_module(action_space)
+    weights = {k: v.detach().numpy() for k, v in module.state_dict().items()}
+    digest = save_weights(tmp_path / "rllib_module.npz", weights)
+    policy = NumpyPpoPolicy(load_weights(tmp_path / "rllib_module.npz", digest, tmp_path / "agent.json"),
+                            action_space, "test")
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        observation = rng.uniform(-1.0, 1.0, 6).astype(np.float32)
+        with torch.no_grad():
+            out = module.forward_inference({"obs": torch.as_tensor(observation[None])})["action_dist_inputs"][0]
+        if isinstance(action_space, gymnasium.spaces.Discrete):
+            assert policy(observation) == int(torch.argmax(out))
+        else:
+            mean = np.clip(out[:2].numpy(), -1.0, 1.0)
+            expected = action_space.low + (mean + 1.0) * (action_space.high - action_space.low) / 2.0
+            action = policy(observation)
+            assert action_space.contains(action) and np.allclose(action, expected, atol=1e-5)
+
+
+def test_a_weights_file_that_is_not_the_recorded_one_is_refused(tmp_path):
+    path = tmp_path / "rllib_module.npz"
+    digest = save_weights(path, {"a": np.zeros(3)})
+    with pytest.raises(RunFileError, match="its sha256 differs"):
+        load_weights(path, "0" * 64, tmp_path / "agent.json")
+    with pytest.raises(RunFileError, match="records no weights_sha256"):
+        load_weights(path, None, tmp_path / "agent.json")
+    path.write_bytes(path.read_bytes()[:20])
+    with pytest.raises(RunFileError, match="its sha256 differs"):
+        load_weights(path, digest, tmp_path / "agent.json")
+    with pytest.raises(RunFileError, match="no actor of RLlib's PPO module"):
+        NumpyPpoPolicy({"a": np.zeros(3)}, gymnasium.spaces.Discrete(2), "test")
