@@ -18,7 +18,8 @@ that cluster's nodes (robot_rl.workers.ray_actors), even for one env.
 SIGINT or SIGTERM (Ctrl-C, roslaunch shutting down) stops the run cleanly (pybullet_sim.ros.shutdown: a rospy
 shutdown, which ends every wait on the sim at once, and a request to stop, never an exception at whatever
 line is running): the episode under way is abandoned, a checkpoint and summary.json (marked incomplete)
-are written, and the node exits 130.
+are written, and the node exits 130. With cluster:=, a wait on a Ray actor (its start, a reply) ends within half a
+second of the stop (robot_rl.workers.base.stop_waits_when), and the actors are killed on the way out.
 Exit codes: 0 trained, 1 failed (one FATAL line says why), 130 interrupted.
 """
 from __future__ import annotations
@@ -46,7 +47,7 @@ from .runs.ledger import TrainingHooks
 from .runs.next_steps import RunContext, complete_lines, end_block, start_line
 from .runs.results import RunDirectory
 from .task import TaskSpec, find_task, make_env
-from .workers.base import WorkerError
+from .workers.base import WorkerError, stop_waits_when
 from .workers.cluster import ClusterError
 
 INTERRUPTED = 130  # the shell's code for a command ended by SIGINT
@@ -227,6 +228,7 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
 
     def should_stop() -> bool:
         return bool(signals) or shutting_down()
+    stop_waits_when(should_stop)  # a wait on Ray actors ends within half a second of a stop (WorkersStopped)
     try:
         node = _read_node_params()
         task = find_task(list(tasks), node.task or tasks[0].name)

@@ -34,6 +34,10 @@ One line per finished trial, with an ETA. Ray runs on this machine (a private te
 usage statistics; Ray 2.60 listens on every interface whatever address it is given, and a local instance
 has its token authentication on, its default: docs/guide/distributed.md) unless cluster:=ADDRESS names a
 running cluster. Every ROS master and sim node of a trial is on 127.0.0.1.
+SIGTERM or SIGINT (Ctrl-C) ends the driver within seconds (`_stop_on_signals`; Tune's own graceful stop took 19 s):
+it leaves Tune's wait at once, and its connection's end ends the trials under way as a killed driver's does (Ray
+kills each trial's actor and its launch; the run keeps its last checkpoint); the table of the trials done is
+written (the curves are left for the resumed sweep), and resume:=true goes on from each run's checkpoint.
 Exit codes: 0 every trial done, 1 a trial failed (the table has the others) or another driver runs the
 sweep, 2 bad arguments, 130 interrupted.
 """
@@ -49,6 +53,7 @@ import math
 import os
 import platform
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -274,6 +279,29 @@ def _jobs(spec: SweepSpec, sweep_dir: Path, trials: Sequence[Trial]) -> list[Tri
                      max_steps=spec.max_steps) for t in trials]
 
 
+@contextlib.contextmanager
+def _stop_on_signals() -> Iterator[list[int]]:
+    """While the block runs (the driver's Ray part): the first SIGTERM or SIGINT raises KeyboardInterrupt in the
+    main thread, which leaves Tune's wait (a KeyboardInterrupt is what Ray's waits pass on from a signal handler),
+    later ones are only recorded; Tune's own SIGINT handler is off (its graceful stop takes 10 s or more). Yields
+    the signals received; the previous handlers are back after the block."""
+    received: list[int] = []
+
+    def stop(signum: int, _frame: Any) -> None:
+        received.append(signum)
+        if len(received) == 1:
+            raise KeyboardInterrupt(signal.Signals(signum).name)
+    previous = {signum: signal.getsignal(signum) for signum in (signal.SIGTERM, signal.SIGINT)}
+    os.environ["TUNE_DISABLE_SIGINT_HANDLER"] = "1"
+    for signum in previous:
+        signal.signal(signum, stop)
+    try:
+        yield received
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
 def _start_ray(spec: SweepSpec, temp_dir: Path) -> None:
     """Join `spec.cluster` (robot_rl.workers.cluster.connect: "ray" or HOST:PORT, bounded), else start Ray on this
     machine, its temp folder inside `temp_dir` (private: robot_rl.workers.cluster.new_temp_dir)."""
@@ -282,9 +310,12 @@ def _start_ray(spec: SweepSpec, temp_dir: Path) -> None:
         connect(spec.cluster)
         return
     import ray
+    handlers = {signum: signal.getsignal(signum) for signum in (signal.SIGTERM, signal.SIGINT)}
     ray.init(address="local", num_cpus=spec.concurrent or None, include_dashboard=False,
              _temp_dir=str(cluster.ray_dir(temp_dir)), _node_ip_address="127.0.0.1", object_store_memory=100 * 2**20,
              log_to_driver=False, logging_level=logging.WARNING)
+    for signum, handler in handlers.items():  # ray.init sets its own SIGTERM handler (sys.exit)
+        signal.signal(signum, handler)
     cluster.make_private(temp_dir)
 
 
@@ -325,7 +356,7 @@ def collect_results(spec: SweepSpec, jobs: Sequence[TrialJob]) -> list[TrialResu
     return results
 
 
-def write_outputs(spec: SweepSpec, sweep_dir: Path, jobs: Sequence[TrialJob]) -> str:
+def write_outputs(spec: SweepSpec, sweep_dir: Path, jobs: Sequence[TrialJob], curves: bool = True) -> str:
     results = collect_results(spec, jobs)
     constant = [f"{k}:={','.join(map(format_value, v))}" for k, v in spec.grid if len(v) == 1]
     greedy_key = _greedy_key(spec.task.headline_metric, results[0].greedy if results else {})
@@ -337,8 +368,10 @@ def write_outputs(spec: SweepSpec, sweep_dir: Path, jobs: Sequence[TrialJob]) ->
              f"{spec.eval_seed}. `./ws sweep {' '.join(spec.grid_args)} name:={spec.name}`; {_machine()}, "
              f"{datetime.datetime.now().astimezone().isoformat(timespec='seconds')}")
     text = write_table(results, title, greedy_key, sweep_dir / "sweep.md", sweep_dir / "sweep.csv")
-    plot_curves(results, spec.task.headline_metric, f"sweep {spec.name}: {spec.task.env_id}, every trial and the mean",
-                sweep_dir / "learning_curves.png")
+    if curves:  # matplotlib: seconds
+        plot_curves(results, spec.task.headline_metric,
+                    f"sweep {spec.name}: {spec.task.env_id}, every trial and the mean",
+                    sweep_dir / "learning_curves.png")
     return text
 
 
@@ -358,24 +391,33 @@ def main(argv: Sequence[str]) -> int:
     todo = [job for job in jobs if not trial_done(job)]
     _log(f"sweep {spec.name}: {len(jobs)} trials ({len(jobs) - len(todo)} done before) in {sweep_dir}")
     failed: list[str] = []
+    stopped: list[int] = []
     if todo:
         os.environ["RAY_USAGE_STATS_ENABLED"] = "0"
         os.environ.setdefault("RAY_AIR_NEW_OUTPUT", "0")  # with verbose=0: no tables from Tune, our lines only
         import ray
         temp_dir = cluster.new_temp_dir()  # short (Ray's socket paths must fit 107 bytes) and private (0700)
-        try:
-            _start_ray(spec, temp_dir)
-            spec = dataclasses.replace(spec, concurrent=spec.concurrent or int(ray.cluster_resources().get("CPU", 1)))
-            _log(f"at most {spec.concurrent} trials at once, each on one CPU of {ray.cluster_resources().get('CPU')}")
-            progress = Progress(len(jobs), len(jobs) - len(todo), spec.task.headline_metric)
-            failed = _tune(spec, sweep_dir, todo, progress)
-        except ClusterError as error:
-            _log(f"error: {error}")
-            return 1
-        finally:
-            ray.shutdown()
-            shutil.rmtree(temp_dir, ignore_errors=True)
-    print(write_outputs(spec, sweep_dir, jobs))
+        with _stop_on_signals() as stopped:
+            try:
+                _start_ray(spec, temp_dir)
+                spec = dataclasses.replace(spec, concurrent=spec.concurrent or
+                                           int(ray.cluster_resources().get("CPU", 1)))
+                _log(f"at most {spec.concurrent} trials at once, each on one CPU of "
+                     f"{ray.cluster_resources().get('CPU')}")
+                progress = Progress(len(jobs), len(jobs) - len(todo), spec.task.headline_metric)
+                failed = _tune(spec, sweep_dir, todo, progress)
+            except (KeyboardInterrupt, ClusterError) as error:
+                if not stopped:  # a ClusterError, or a KeyboardInterrupt of no signal of ours
+                    if isinstance(error, KeyboardInterrupt):
+                        raise
+                    _log(f"error: {error}")
+                    return 1
+                _log(f"stopped ({signal.Signals(stopped[0]).name}): the trials under way end with this driver, each "
+                     f"run keeping its last checkpoint")
+            finally:
+                ray.shutdown()  # its trials' actors end with it, and their launches by their death signal
+                shutil.rmtree(temp_dir, ignore_errors=True)
+    print(write_outputs(spec, sweep_dir, jobs, curves=not stopped))
     not_done = [job.name for job in jobs if not trial_done(job)]
     if failed:
         _log(f"{len(failed)} trial(s) failed: {', '.join(failed)} (logs in {sweep_dir / 'logs'}); the table has the "
@@ -391,4 +433,10 @@ def main(argv: Sequence[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    code = main(sys.argv[1:])
+    # Nothing is left to do, and the interpreter's own end (freeing Ray Tune's and its libraries' objects) takes
+    # seconds (6 s on two busy cores): a sweep stopped by a signal must end within 10 s of it.
+    logging.shutdown()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)

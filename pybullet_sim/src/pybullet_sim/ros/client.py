@@ -169,7 +169,8 @@ class CallWatchdog:
     """Bounds calls of persistent service proxies, which rospy cannot time out, without a thread
     hand-off per call: the caller notes when a call starts and ends (two attribute writes), and a
     daemon thread looks a few times per second; a call running longer than `timeout` gets its socket
-    shut down, so that rospy raises and the caller can say which service did not answer."""
+    shut down, so that rospy raises and the caller can say which service did not answer. So does a call
+    under way once a rospy shutdown is requested (SIGTERM, Ctrl-C: rospy leaves a service call waiting)."""
 
     def __init__(self, timeout: float):
         self.timeout = timeout
@@ -187,8 +188,11 @@ class CallWatchdog:
     def _watch(self) -> None:
         while not self._closed.wait(min(0.25, self.timeout / 4)):
             call = self._call
-            if call is not None and time.monotonic() - call[1] > self.timeout and call[0].transport is not None:
-                self.expired = call[0]
+            if call is None or call[0].transport is None:
+                continue
+            stopped = rospy.core.is_shutdown_requested()
+            if stopped or time.monotonic() - call[1] > self.timeout:
+                self.expired = None if stopped else call[0]  # the caller names a late service, not a stop
                 try:
                     call[0].transport.socket.shutdown(socket.SHUT_RDWR)
                 except (AttributeError, OSError):  # already closed
@@ -269,6 +273,8 @@ class SimConnection:
         if self._watchdog.expired is proxy:
             return SimConnectionError(f"service {name} did not answer within {self.timeout} s: the sim node is "
                                       f"frozen or overloaded (is it stopped, or stepping a huge request?)")
+        if rospy.core.is_shutdown_requested():  # a stop ended the call (CallWatchdog), or the sim with it
+            return SimConnectionError(f"shutdown while waiting for service {name}")
         reason, lost = self._what_became_of_the_sim(error)
         if lost:
             self._lost = reason

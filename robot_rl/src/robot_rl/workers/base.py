@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import os
 import shutil
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
@@ -51,6 +51,25 @@ class WorkerRestarted(WorkerError):
     def __init__(self, message: str, index: int, observation: Any, info: dict[str, Any]):
         super().__init__(message)
         self.index, self.observation, self.info = index, observation, info
+
+
+class WorkersStopped(WorkerError):
+    """A stop request (stop_waits_when's check: SIGTERM or SIGINT to the training node) ended a wait on the workers;
+    the workers have not failed."""
+
+
+_stop_check: list[Callable[[], bool]] = []
+
+
+def stop_waits_when(check: Callable[[], bool]) -> None:
+    """From now on, every wait on Ray actors (robot_rl.workers.ray_actors: a start, a reply, a restart) ends with
+    WorkersStopped within a slice of a second once `check()` is true (e.g. the training node's stop request)."""
+    _stop_check[:] = [check]
+
+
+def stop_requested() -> bool:
+    """Whether stop_waits_when's check says stop (False when none is set)."""
+    return any(check() for check in _stop_check)
 
 
 class Workers(Protocol):

@@ -16,16 +16,20 @@ faster (workspace_tools/scripts/ray_call_bench.py; docs/research/2026-11-26-ray-
 much CPU as the env step it carries (0.85-1.05 ms on a 2-core machine), so on one machine Ray actors stay well below
 pipe workers whatever the scheduling: they are for envs spread over machines.
 
-An actor's logs (its master's and sim node's, the traceback of a failure) stay on its node, in a temporary
-folder the errors name with the node's address; close() removes them unless a worker failed. Every wait is
-bounded (ray.wait with a timeout; ray.get(timeout=...) costs a quarter millisecond more per call). The actors
-are not detached: they end with this driver, and close() ends them (each stops its sim node and master, then
-ray.kill). A node that is lost takes its actors with it: each exits once it finds its raylet gone, and its
-master and sim node end by their death signal. Ray restarts a lost actor on a node with a free CPU (up to
-max_restarts times): its constructor makes a new env with the same seed, which is reset, and the reply owed
-becomes a WorkerRestarted with that reset's observation. The tabular trainer from N envs starts that env's
-episode under way anew (robot_rl.agents.qlearn.vector_trainer); the gymnasium and SB3 faces end with it as with any
-WorkerError (resume:=true continues the run). With no restart left, or none placed within start_timeout, a
+An actor's logs (its master's and sim node's, the traceback of a failure) stay on its node, in a temporary folder
+the errors name with the node's address; close() removes them unless a worker failed. Every wait is bounded
+(ray.wait with a timeout; ray.get(timeout=...) costs a quarter millisecond more per call) and made of waits of at
+most WAIT_SLICE s, between which a stop request (robot_rl.workers.base.stop_waits_when: the training node's SIGTERM
+or SIGINT) ends it with WorkersStopped: the node's signal handler only records the stop, so a stop during an actor's
+start (up to start_timeout) or a reply (up to ros_timeout + 30 s) would otherwise wait for its end. The actors are
+not detached: they end with this driver, and close() ends them (each stops its sim node and master, then ray.kill;
+after a stop, those that owe no reply get STOP_CLOSE_TIMEOUT s to close, and every actor is then killed, its master
+and sim node ending by their death signal). A node that is lost takes its actors with it: each exits once it finds
+its raylet gone, and its master and sim node end by their death signal. Ray restarts a lost actor on a node with a
+free CPU (up to max_restarts times): its constructor makes a new env with the same seed, which is reset, and the
+reply owed becomes a WorkerRestarted with that reset's observation. The tabular trainer from N envs starts that
+env's episode under way anew (robot_rl.agents.qlearn.vector_trainer); the gymnasium and SB3 faces end with it as
+with any WorkerError (resume:=true continues the run). With no restart left, or none placed within start_timeout, a
 lost actor is a WorkerError naming the env and its node.
 """
 from __future__ import annotations
@@ -52,8 +56,10 @@ from .base import (
     WorkerError,
     WorkerRecipe,
     WorkerRestarted,
+    WorkersStopped,
     answer,
     check_workers,
+    stop_requested,
     worker_env,
     worker_seeds,
 )
@@ -61,6 +67,8 @@ from .cluster import connect
 from .pipe import EnvWorkers
 
 RESTART_POLL = 0.5  # s between asks whether a lost actor is back
+WAIT_SLICE = 0.5  # s at most of one ray.wait: a stop request ends a wait within this
+STOP_CLOSE_TIMEOUT = 3.0  # s for the actors to close after a stop, before they are killed
 
 
 class EnvActor:
@@ -122,6 +130,7 @@ class RayEnvWorkers(EnvWorkers):
         self.closed = False
         self.failed = False
         self._connected = False
+        self._stopped_at: float | None = None  # when a stop request was first seen
         self._actors: list[Any] = []
         self._refs: list[Any] = [None] * n
         self.worker_info: list[dict[str, Any]] = [{} for _ in range(n)]
@@ -149,6 +158,31 @@ class RayEnvWorkers(EnvWorkers):
         logs = "its master's and sim node's logs" if over_ros(self.backend) else "its logs"
         return f"{logs} are kept on node {info['node_ip']} in {info['log_dir']}"
 
+    def _wait(self, refs: list[Any], timeout: float, what: str) -> list[Any]:
+        """The refs that are ready within `timeout` (all, or fewer when it ran out), in waits of WAIT_SLICE s at
+        most; WorkersStopped (naming `what`) once stop_requested() says stop."""
+        deadline = time.monotonic() + timeout
+        while True:
+            left = deadline - time.monotonic()
+            ready, _ = ray.wait(refs, num_returns=len(refs), timeout=max(0.0, min(WAIT_SLICE, left)), fetch_local=True)
+            if len(ready) == len(refs) or left <= WAIT_SLICE:
+                return ready
+            if stop_requested():
+                self._stopped_at = self._stopped_at or time.monotonic()
+                raise WorkersStopped(f"stopped while waiting for {what} (a stop request: SIGTERM or SIGINT)")
+
+    def _close_wait(self, refs: list[Any], timeout: float) -> None:
+        """Wait for `refs` at most `timeout`, and no longer than STOP_CLOSE_TIMEOUT after a stop request."""
+        deadline = time.monotonic() + timeout
+        while True:
+            if self._stopped_at is None and stop_requested():
+                self._stopped_at = time.monotonic()
+            if self._stopped_at is not None:
+                deadline = min(deadline, self._stopped_at + STOP_CLOSE_TIMEOUT)
+            left = deadline - time.monotonic()
+            if left <= 0 or len(ray.wait(refs, num_returns=len(refs), timeout=min(WAIT_SLICE, left))[0]) == len(refs):
+                return
+
     def send(self, i: int, command: str, data: Any = None) -> None:
         if self.closed:
             raise WorkerError("the vector env is closed")
@@ -160,7 +194,7 @@ class RayEnvWorkers(EnvWorkers):
         timeout = self.reply_timeout if timeout is None else timeout
         try:
             # ray.wait, then ray.get: a quarter millisecond less per call than ray.get(timeout=...) (Ray 2.60)
-            if not ray.wait([self._refs[i]], timeout=timeout)[0]:
+            if not self._wait([self._refs[i]], timeout, f"worker {i}'s {what} (ray, {self._where(i)})"):
                 raise GetTimeoutError
             reply = ray.get(self._refs[i])
         except GetTimeoutError:
@@ -191,14 +225,18 @@ class RayEnvWorkers(EnvWorkers):
             while True:  # until Ray has found the node dead and restarted the actor elsewhere (bounded)
                 self._refs[i] = self._actors[i].describe.remote()
                 try:
-                    info = ray.get(self._refs[i], timeout=max(0.0, deadline - time.monotonic()))[3]
+                    if not self._wait([self._refs[i]], max(0.0, deadline - time.monotonic()), f"worker {i}'s restart"):
+                        raise GetTimeoutError
+                    info = ray.get(self._refs[i])[3]
                     break
                 except ActorUnavailableError:  # not yet known dead, or restarting
                     if time.monotonic() > deadline:
                         raise
                     time.sleep(RESTART_POLL)
             self._refs[i] = self._actors[i].command.remote("reset", (self.seeds[i], None))
-            observation, reset_info = ray.get(self._refs[i], timeout=self.reply_timeout)
+            if not self._wait([self._refs[i]], self.reply_timeout, f"worker {i}'s reset after its restart"):
+                raise GetTimeoutError
+            observation, reset_info = ray.get(self._refs[i])
         except (RayActorError, RayTaskError, GetTimeoutError) as again:
             return self._failure(f"{lost}, and Ray could not restart it within {self.start_timeout:.0f} s ("
                                  f"{type(again).__name__}; is there a node with a free CPU?): "
@@ -214,7 +252,7 @@ class RayEnvWorkers(EnvWorkers):
         timeout = self.reply_timeout if timeout is None else timeout
         deadline = time.monotonic() + timeout
         if all(ref is not None for ref in self._refs):  # the usual case, in one wait: every reply arrives
-            ready, _ = ray.wait(self._refs, num_returns=self.n, timeout=timeout, fetch_local=True)
+            ready = self._wait(self._refs, timeout, f"the {what} of the {self.n} ray workers")
             if len(ready) == self.n:
                 try:
                     replies = ray.get(self._refs)
@@ -236,19 +274,19 @@ class RayEnvWorkers(EnvWorkers):
         return replies
 
     def close(self) -> None:
-        """End every actor and what it started (bounded; idempotent); disconnect if this made the connection."""
+        """End every actor and what it started (bounded, and within STOP_CLOSE_TIMEOUT after a stop; idempotent);
+        disconnect if this made the connection."""
         if self.closed:
             return
         self.closed = True
         if not ray.is_initialized():  # disconnected already: the actors ended with the connection
             return
-        closing = []
-        for i, actor in enumerate(self._actors):
-            if self._pending[i] and self._refs[i] is not None:
-                ray.wait([self._refs[i]], timeout=CLOSE_TIMEOUT)  # the reply owed, e.g. after an interrupted step
-            closing.append(actor.close.remote(self.failed))
+        owed = [ref for i, ref in enumerate(self._refs) if self._pending[i] and ref is not None]
+        if owed and self._stopped_at is None:  # the replies owed, e.g. after an interrupted step; a stop's are not
+            self._close_wait(owed, CLOSE_TIMEOUT)
+        closing = [actor.close.remote(self.failed) for actor in self._actors]  # a busy actor's waits its turn
         if closing:
-            ray.wait(closing, num_returns=len(closing), timeout=CLOSE_TIMEOUT)
+            self._close_wait(closing, CLOSE_TIMEOUT)
         for actor in self._actors:
             ray.kill(actor, no_restart=True)
         if self._connected:

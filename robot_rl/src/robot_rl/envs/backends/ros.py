@@ -225,6 +225,11 @@ class GazeboStyleBackend(RosBackend):
         self._clock = rospy.Time(0)
         self._clock_changed = threading.Condition()
         self._clock_subscriber = rospy.Subscriber("/clock", Clock, self._on_clock, tcp_nodelay=True)
+        rospy.on_shutdown(self._wake)  # a stop (SIGTERM, Ctrl-C) ends a wait on /clock at once
+
+    def _wake(self, *_: Any) -> None:
+        with self._clock_changed:
+            self._clock_changed.notify_all()
 
     def _on_clock(self, msg: Any) -> None:
         with self._clock_changed:
@@ -239,9 +244,11 @@ class GazeboStyleBackend(RosBackend):
         for controller, value in pending.items():
             self._publishers[controller].publish(value)
         with self._clock_changed:
-            if not self._clock_changed.wait_for(lambda: self._clock >= target, self.timeout):
+            if not self._clock_changed.wait_for(lambda: self._clock >= target or rospy.is_shutdown(), self.timeout):
                 raise SimConnectionError(f"/clock did not advance by {physics_steps} physics steps within "
                                          f"{self.timeout} s")
+            if self._clock < target:
+                raise SimConnectionError("shutdown while waiting for /clock")
         self.sim.pause()
         self._stamp = None  # the latest messages are of no exact time: the next answer is not checked
         readings = Readings(self._latest(self._joints), {name: self._latest(s) for name, s in self._sensors.items()})
