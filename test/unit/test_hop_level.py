@@ -13,6 +13,7 @@ from gymnasium.utils.env_checker import check_env
 from hopper_training import TASKS
 from hopper_training.controller.core import HopController, HopGains, HopInput, Phase
 from hopper_training.envs.hop_cycle import controller_params
+from hopper_training.scripted_policies import POLICIES
 from hopper_training.envs.hop_in_place import (
     HOP_IN_PLACE,
     SPEED_EDGES,
@@ -178,13 +179,27 @@ def test_evaluate_plays_one_constant_action_every_hop(capsys):
     assert action_meaning(PARAMS, 2) == pytest.approx((0.02, 0.0)), "action 2: the foot 2 cm ahead"
 
 
+def test_evaluate_plays_a_constant_box_action_and_end_to_end_does_nothing_by_holding_the_crouch(capsys):
+    report = evaluate_json(capsys, "--policy", "constant", "--action", "0,0.5,0", "--task", "end_to_end",
+                           "--episodes", "1", "--horizon-s", "0.5")
+    assert report["action"] == "0,0.5,0" and report["task"] == "MonopedEndToEnd-v0"
+    assert evaluation.main(["--policy", "do_nothing", "--task", "end_to_end", "--episodes", "1", "--horizon-s", "0.5"],
+                           TASKS, "evaluate_monoped", POLICIES) == 0
+    still = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert still["do_nothing"]["mean_hops"] == 0
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--policy", "constant", "--task", "hop_in_place"], "--action N is needed for --policy constant, and only for it"),
     (["--qtable", "some_run", "--action", "1"], "--action N is needed for --policy constant, and only for it"),
     (["--policy", "constant", "--action", "6", "--task", "hop_in_place"],
      "--action must be from 0 to 5 (MonopedHopInPlace-v0's Discrete(6)), got 6"),
     (["--policy", "constant", "--action", "0", "--task", "residual_forward"],
-     "--policy constant needs Discrete actions; MonopedResidualForward-v0's are Box("),
+     "--action must be 2 comma-separated numbers within MonopedResidualForward-v0's Box("),
+    (["--policy", "constant", "--action", "0,0,7", "--task", "end_to_end"],
+     "--action must be 3 comma-separated numbers within MonopedEndToEnd-v0's Box("),
+    (["--policy", "constant", "--action", "x", "--task", "hop_in_place"],
+     "--action must be from 0 to 5 (MonopedHopInPlace-v0's Discrete(6)), got x"),
 ])
 def test_evaluate_refuses_a_constant_action_the_task_cannot_take_in_one_line(capsys, argv, message):
     with pytest.raises(SystemExit) as exit_info:

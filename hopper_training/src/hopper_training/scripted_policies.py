@@ -51,6 +51,8 @@ def controller_params(task: TaskSpec[Any], params: Any) -> Any:
 
 
 def do_nothing(env: Any, speed: float) -> Any:
+    if env.unwrapped.task is END_TO_END:  # the targets of the crouch every step: hold still
+        return ConstantAction(np.zeros(env.action_space.shape, dtype=env.action_space.dtype))
     if env.unwrapped.task in RESIDUAL_TASKS:
         return zero_residual(env, speed)
     return do_nothing_policy(env, speed)

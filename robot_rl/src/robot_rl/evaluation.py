@@ -21,7 +21,8 @@ is [LOW, HIGH], or null for a task without it.
 `--policy NAME` evaluates instead a hand-written policy that the robot's package offers (the monoped's
 `controller`, hopper_training.controller_policy), commanded `--speed` m/s along +x, on `--task`'s default
 params as that policy needs them; its JSON has "policy": NAME and NAME: {...} with the keys of "greedy".
-`--policy constant --action N`, on every robot, takes action N every step (a task with Discrete actions):
+`--policy constant --action N`, on every robot, takes action N every step (Discrete actions; a Box action as
+comma-separated values, e.g. `--action=-0.5,0,0`, with `=` when the first is negative):
 the trivial baselines a learned policy must beat besides random ones; its JSON adds "action": N.
 `--push V` kicks the robot's base V m/s horizontally in a random direction at random times, one every 1-3 s of
 sim time (push_schedule: drawn from the evaluation seed and the episode's number), for every policy; the
@@ -319,8 +320,9 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
                         help=f"--policy other than greedy: the task (default {tasks[0].name})")
     parser.add_argument("--speed", type=finite_float, default=0.0,
                         help="--policy other than greedy: its commanded speed along +x, m/s (default 0)")
-    parser.add_argument("--action", type=int,
-                        help="--policy constant: the action taken every step (a Discrete action's index)")
+    parser.add_argument("--action",
+                        help="--policy constant: the action taken every step (a Discrete action's index, or a Box "
+                             "action's comma-separated values)")
     parser.add_argument("--episodes", type=int, default=20, help="episodes per policy (default 20)")
     parser.add_argument("--horizon-s", type=finite_float, help="sim seconds per episode at most (default: the task's)")
     parser.add_argument("--backend", choices=("direct", "ros"), default="direct",
@@ -424,6 +426,6 @@ def _main_scripted(parser: argparse.ArgumentParser, args: argparse.Namespace, ta
     except ValueError as error:  # a policy that cannot act in the task (constant's --action, a --speed refused)
         parser.exit(2, f"evaluate.py: {error}\n")
     if args.policy == "constant":
-        report["action"] = args.action
+        report["action"] = int(args.action) if args.action.strip().lstrip("-").isdigit() else args.action
     print(json.dumps(report))
     return 0

@@ -33,25 +33,35 @@ class ConstantAction:
     """A policy that always takes one action: the trivial baselines (`--policy constant --action N`, and a robot
     package's do-nothing action)."""
 
-    def __init__(self, action: int):
+    def __init__(self, action: Any):
         self.action = action
 
-    def __call__(self, observation: np.ndarray) -> int:
+    def __call__(self, observation: np.ndarray) -> Any:
         return self.action
 
 
-def constant_policy(action: int) -> ScriptedPolicy:
-    """`--policy constant --action N`: action N every step, on any task with Discrete actions."""
+def constant_policy(action: str) -> ScriptedPolicy:
+    """`--policy constant --action A`: action A every step: an index N for Discrete actions, comma-separated numbers
+    (one per dimension, within the bounds) for Box actions."""
     def build(env: Any, speed: float) -> ConstantAction:
-        space = env.action_space
-        if not isinstance(space, gymnasium.spaces.Discrete):
-            raise ValueError(f"--policy constant needs Discrete actions; {env.unwrapped.task.env_id}'s are {space}")
-        if not 0 <= action < int(space.n):
-            raise ValueError(f"--action must be from 0 to {int(space.n) - 1} ({env.unwrapped.task.env_id}'s "
-                             f"Discrete({int(space.n)})), got {action}")
+        space, env_id = env.action_space, env.unwrapped.task.env_id
         if speed != 0.0:
             raise ValueError(f"--policy constant takes no --speed, got {speed}")
-        return ConstantAction(action)
+        if isinstance(space, gymnasium.spaces.Discrete):
+            if not action.strip().lstrip("-").isdigit() or not 0 <= int(action) < int(space.n):
+                raise ValueError(f"--action must be from 0 to {int(space.n) - 1} ({env_id}'s "
+                                 f"Discrete({int(space.n)})), got {action}")
+            return ConstantAction(int(action))
+        if not isinstance(space, gymnasium.spaces.Box) or len(space.shape) != 1:
+            raise ValueError(f"--policy constant needs Discrete or one-dimensional Box actions; {env_id}'s are {space}")
+        try:
+            vector = np.array([float(value) for value in action.split(",")], dtype=space.dtype)
+        except ValueError:
+            vector = np.array([])
+        if vector.shape != space.shape or not space.contains(vector):
+            raise ValueError(f"--action must be {space.shape[0]} comma-separated numbers within {env_id}'s {space}, "
+                             f"got {action}")
+        return ConstantAction(vector)
     return ScriptedPolicy(lambda task, params: params, build)
 
 
