@@ -13,7 +13,6 @@ from gymnasium.utils.env_checker import check_env
 from hopper_training import TASKS
 from hopper_training.controller.core import HopController, HopGains, HopInput, Phase
 from hopper_training.envs.hop_cycle import controller_params
-from hopper_training.scripted_policies import POLICIES
 from hopper_training.envs.hop_in_place import (
     HOP_IN_PLACE,
     SPEED_EDGES,
@@ -23,6 +22,7 @@ from hopper_training.envs.hop_in_place import (
     offsets,
     thrust_knees,
 )
+from hopper_training.scripted_policies import POLICIES
 from robot_rl import ParamError, evaluation, make_env
 
 PARAMS = HOP_IN_PLACE.default_params()
