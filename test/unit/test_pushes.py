@@ -152,7 +152,8 @@ def test_evaluate_with_pushes_reports_them_and_they_cost_the_teacher_nothing_it_
 
 def test_evaluation_sets_the_pushes_it_is_asked_for_whatever_the_run_trained_with():
     from robot_rl.evaluation import with_push
-    trained = HOP_IN_PLACE.default_params().with_changes("test", push_speed=0.3, push_interval={"low": 0.5, "high": 1.0})
+    trained = HOP_IN_PLACE.default_params().with_changes("test", push_speed=0.3,
+                                                         push_interval={"low": 0.5, "high": 1.0})
     calm = with_push(trained, 0.0)
     assert calm.push_speed == 0.0
     pushed = with_push(trained, 0.3)
