@@ -67,6 +67,7 @@ class MonopedParams(TaskParams):
                                         "high] (rad) in a random direction")
 
     def check(self, source: str) -> None:
+        super().check(source)
         if not self.min_height < self.max_height:
             raise ParamError(f"{source}: parameter 'min_height' ({self.min_height}) must be below "
                              f"'max_height' ({self.max_height})")

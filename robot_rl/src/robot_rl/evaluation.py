@@ -25,8 +25,9 @@ params as that policy needs them; its JSON has "policy": NAME and NAME: {...} wi
 comma-separated values, e.g. `--action=-0.5,0,0`, with `=` when the first is negative):
 the trivial baselines a learned policy must beat besides random ones; its JSON adds "action": N.
 `--push V` kicks the robot's base V m/s horizontally in a random direction at random times, one every 1-3 s of
-sim time (push_schedule: drawn from the evaluation seed and the episode's number), for every policy; the
-JSON adds "push": V.
+sim time, for every policy: the env's own pushes (params push_speed V, push_interval 1-3 s;
+robot_rl.envs.pushes: drawn from the evaluation seed and the episode's number); the JSON adds "push": V.
+Without it a run trained with pushes is evaluated without them.
 `--video` records the first `--video-episodes` (3) greedy episodes to an mp4 (robot_rl.runs.video: real
 time, or `--slow-motion K` times slower, at most 30 frames/s, from the robot's camera of its sim config) and
 adds "video": {"path", "episodes", "frames", "fps", "slow_motion"} to the JSON; recording changes none of the
@@ -45,24 +46,20 @@ import json
 import math
 import re
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import gymnasium
 import numpy as np
-import rospy
 import yaml
 
-from gazebo_msgs.msg import ModelState
-from gazebo_msgs.srv import GetModelState, SetModelState
 from pybullet_sim.ros.client import SimConnectionError
-from pybullet_sim.urdf import parse_urdf_joints
 
 from .agents.registry import AgentSpec, agent_of, checkpoint_of
 from .envs.backends.base import SimStateError
 from .envs.backends.factory import over_ros
 from .envs.backends.ros import init_ros_node
+from .envs.pushes import PUSH_GAP_S
 from .params import ParamError
 from .policies import ScriptedPolicy, constant_policy, random_actions
 from .runs.loaded import LoadedRun
@@ -74,77 +71,15 @@ MAX_VIDEO_SIDE = 4096
 MAX_SEED = 2**31 - 1      # as a training's seed:= (ROS's int, numpy's seed)
 MAX_HORIZON_S = 86400.0   # s of sim time per episode at most: a day
 EVAL_INITIAL_TILT = (0.02, 0.05)  # rad: evaluation episodes start leaning this much, where the task can
-PUSH_GAP_S = (1.0, 3.0)  # --push: the sim seconds between two pushes, drawn uniformly (one every 2 s on average)
 
 
-def push_schedule(seed: int, episode: int, horizon_s: float) -> list[tuple[float, float]]:
-    """The pushes of an episode: (sim seconds after its start, heading in rad of the world xy plane), the gaps
-    uniform in PUSH_GAP_S, drawn from (seed, episode) alone: the same arguments, the same pushes."""
-    rng = np.random.default_rng([seed, episode])
-    pushes: list[tuple[float, float]] = []
-    t = 0.0
-    while True:
-        t += float(rng.uniform(*PUSH_GAP_S))
-        if t >= horizon_s:
-            return pushes
-        pushes.append((t, float(rng.uniform(-np.pi, np.pi))))
-
-
-def kick_base(env: Any, velocity_change: tuple[float, float]) -> None:
-    """Add a horizontal velocity (m/s, world x and y) to the robot's base, its pose and joints as they are: the
-    direct backend through its World, over ROS through the sim's /gazebo/get_model_state and set_model_state."""
-    backend = env.unwrapped.backend
-    world = getattr(backend, "world", None)
-    if world is not None:
-        state = world.model_state()
-        vx, vy, vz = state.linear_velocity
-        world.set_model_state(replace(state, linear_velocity=(vx + velocity_change[0], vy + velocity_change[1], vz)))
-        return
-    urdf = env.unwrapped.task.robot.urdf_path
-    model = parse_urdf_joints(urdf.read_text(encoding="utf-8"), str(urdf))[0]
-    try:
-        for name in ("/gazebo/get_model_state", "/gazebo/set_model_state"):
-            rospy.wait_for_service(name, backend.timeout)
-        now = rospy.ServiceProxy("/gazebo/get_model_state", GetModelState)(model, "world")
-        now.twist.linear.x += velocity_change[0]
-        now.twist.linear.y += velocity_change[1]
-        answer = rospy.ServiceProxy("/gazebo/set_model_state", SetModelState)(
-            ModelState(model_name=model, pose=now.pose, twist=now.twist, reference_frame="world"))
-    except (rospy.ServiceException, rospy.ROSException) as error:
-        raise SimConnectionError(f"--push: the sim's model state services failed: {error} (is the sim node "
-                                 f"running?)") from None
-    if not (now.success and answer.success):
-        raise SimConnectionError(f"--push: the sim refused: {now.status_message} {answer.status_message}")
-
-
-def with_pushes(env: Any, push: float, seed: int, horizon_s: float) -> Any:
-    """`env`, wrapped in Pushes if `push` (m/s) is above 0."""
-    return Pushes(env, push, seed, horizon_s) if push > 0.0 else env
-
-
-class Pushes(gymnasium.Wrapper[Any, Any, Any, Any]):
-    """`evaluate.py --push V`: kicks the base by V m/s horizontally at the times push_schedule draws from the
-    evaluation seed and the episode's number (counted over every policy's episodes), before the step they fall in."""
-
-    def __init__(self, env: Any, speed: float, seed: int, horizon_s: float):
-        super().__init__(env)
-        self.speed, self.seed, self.horizon_s = speed, seed, horizon_s
-        self.episode, self.start = -1, 0.0
-        self.pushes: list[tuple[float, float]] = []
-
-    def reset(self, **kwargs: Any) -> Any:
-        observation, info = self.env.reset(**kwargs)
-        self.episode += 1
-        self.pushes = push_schedule(self.seed, self.episode, self.horizon_s)
-        self.start = info["sim_time"]
-        return observation, info
-
-    def step(self, action: Any) -> Any:
-        readings = getattr(self.env.unwrapped, "readings", None)
-        if self.pushes and readings is not None and readings.stamp - self.start >= self.pushes[0][0]:
-            _, heading = self.pushes.pop(0)
-            kick_base(self.env, (self.speed * math.cos(heading), self.speed * math.sin(heading)))
-        return self.env.step(action)
+def with_push(params: Any, push: float, source: str = "--push") -> Any:
+    """`params` with the env's pushes set to `push` m/s (0: none) at evaluation's standard interval PUSH_GAP_S,
+    whatever the run trained with (robot_rl.envs.pushes)."""
+    interval = {"low": PUSH_GAP_S[0], "high": PUSH_GAP_S[1]}
+    if params.push_speed == push and (params.push_interval.low, params.push_interval.high) == PUSH_GAP_S:
+        return params
+    return params.with_changes(source, push_speed=push, push_interval=interval)
 
 
 class TrainedRun(LoadedRun):
@@ -229,13 +164,12 @@ def evaluate(run: TrainedRun, episodes: int, horizon_s: float, backend: str, see
              push: float = 0.0) -> dict[str, Any]:
     """Greedy, then seeded uniformly random, `episodes` each, from a seeded first reset; `video` records
     the first greedy episodes; `initial_tilt` (LOW, HIGH rad) replaces the run's params' (None: the run's);
-    `push` > 0: kicks of that many m/s (Pushes)."""
-    params = with_initial_tilt(run.params, initial_tilt, "--initial-tilt")
+    `push` > 0: kicks of that many m/s (with_push; 0: none, even for a run trained with pushes)."""
+    params = with_push(with_initial_tilt(run.params, initial_tilt, "--initial-tilt"), push)
     steps = max(1, round(horizon_s / params.running_step))
     rendering = {} if video is None else {"render_mode": "rgb_array", "render_width": video.width,
                                           "render_height": video.height}
-    env = with_pushes(make_env(run.task, params=params, backend=backend, seed=seed, max_episode_steps=steps,
-                               **rendering), push, seed, steps * params.running_step)
+    env = make_env(run.task, params=params, backend=backend, seed=seed, max_episode_steps=steps, **rendering)
     recorder = None if video is None else VideoRecorder(env, video.path, video.episodes,
                                                       slow_motion=video.slow_motion)
     rng = np.random.default_rng(seed)
@@ -263,9 +197,9 @@ def evaluate_scripted(task: TaskSpec[Any], name: str, scripted: ScriptedPolicy, 
                       horizon_s: float, backend: str, seed: int, speed: float, push: float = 0.0) -> dict[str, Any]:
     """`episodes` episodes of the scripted policy `name` on `params` (as scripted.env_params made them),
     from a seeded first reset."""
+    params = with_push(params, push)
     steps = max(1, round(horizon_s / params.running_step))
-    env = with_pushes(make_env(task, params=params, backend=backend, seed=seed, max_episode_steps=steps), push, seed,
-                      steps * params.running_step)
+    env = make_env(task, params=params, backend=backend, seed=seed, max_episode_steps=steps)
     try:
         policy = scripted.build(env, speed)
         env.reset(seed=seed)

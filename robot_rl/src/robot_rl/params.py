@@ -25,6 +25,7 @@ from robot_rl.atomic import StrPath
 _MERGE_TAG = "tag:yaml.org,2002:merge"
 MAX_SEED = 2**31 - 1          # a seed is a ROS param (XML-RPC's 32-bit int) and seeds numpy ([0, 2**32))
 MAX_COUNT = 10**9             # episodes, steps per episode: beyond any run, and within a ROS param
+MAX_HORIZON_S = 86400.0       # s of sim time: a day, beyond any episode
 MAX_RUNNING_STEP_S = 100.0    # the sim's longest step (pybullet_sim Step.MAX_STEPS of its default 1 ms)
 P = TypeVar("P", bound="Params")
 
@@ -149,6 +150,14 @@ class Point(Params):
 
 
 @dataclass(frozen=True, kw_only=True)
+class PushInterval(Params):
+    """The sim seconds between two pushes, drawn uniformly in [low, high] (robot_rl.envs.pushes)."""
+
+    low: float = param(low=0.1, high=MAX_HORIZON_S, default=1.0)
+    high: float = param(low=0.1, high=MAX_HORIZON_S, default=3.0)
+
+
+@dataclass(frozen=True, kw_only=True)
 class TaskParams(Params):
     """What every task's YAML holds: the tutorials' Q-learning keys and the env step."""
 
@@ -167,6 +176,16 @@ class TaskParams(Params):
     q_init: float = param(default=0.0, doc="Q of a pair never updated (the tutorial's 0)")
     first_visit: str = param(choices=("reward", "target"), default="reward",
                              doc="a pair's first update: store the reward (tutorial) or step from q_init")
+    push_speed: float = param(low=0.0, high=10.0, default=0.0,
+                              doc="m/s: the env kicks the base this much horizontally, in a random direction, at "
+                                  "random times (robot_rl.envs.pushes; 0: never; evaluate.py --push sets it)")
+    push_interval: PushInterval = param(default=PushInterval(), doc="s of sim time between two pushes: uniform in "
+                                                                    "[low, high]")
+
+    def check(self, source: str) -> None:
+        if not self.push_interval.low <= self.push_interval.high:
+            raise ParamError(f"{source}: parameter 'push_interval/low' ({self.push_interval.low}) must not be above "
+                             f"'push_interval/high' ({self.push_interval.high})")
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):

@@ -123,7 +123,7 @@ class HopCycleEnv(MonopedBaseEnv):
             for name, target in zip(CONTROLLERS, targets):
                 self.backend.set_command(name, target)
             self.targets = list(targets)
-            readings = self.backend.step(self.physics_steps)
+            self.readings = readings = self._run_period()  # the pushes due first (params' push_speed)
             for hook in self.period_hooks:
                 hook()
             odometry = readings.odometry(ODOMETRY_SENSOR)

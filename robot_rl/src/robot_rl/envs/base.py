@@ -22,7 +22,11 @@ follows the robot, and each step waits so that sim time runs no faster than wall
 sim node's window (gui:=true) or rviz (rviz:=true) shows the robot. metadata["render_fps"] is
 1 / running_step: one frame per control period. A task whose env step runs several control periods
 (`multi_period_steps`, e.g. one step a hop) calls every function in `period_hooks` after each period,
-so that a recorder can take frames in real time within a step.
+so that a recorder can take frames in real time within a step, and runs each period through `_run_period`.
+
+Pushes (params push_speed > 0, robot_rl.envs.pushes): before a control period in which a push's time falls, the
+backend kicks the base horizontally; the times and directions come from the last seeded reset's seed and the
+episodes since it, so training and evaluate.py --push share one seeded schedule on either backend.
 """
 from __future__ import annotations
 
@@ -41,6 +45,7 @@ from ..params import TaskParams
 from ..task import TaskSpec
 from .backends.base import Backend, Readings
 from .backends.factory import make_backend
+from .pushes import PushPlan
 
 P = TypeVar("P", bound=TaskParams)
 MAX_PHYSICS_STEPS = 100_000  # pybullet_sim's Step.MAX_STEPS: the most one lockstep step may advance
@@ -90,6 +95,8 @@ class RobotEnv(gymnasium.Env[np.ndarray, Any], Generic[P], abc.ABC):
         self.settle_steps = round(self._settle_time() / time_step)
         self.readings: Readings | None = None
         self.period_hooks: list[Callable[[], None]] = []
+        interval = self.params.push_interval
+        self.pushes = PushPlan(self.params.push_speed, (interval.low, interval.high))
         self.closed = False
         self.action_space, self.observation_space = self._spaces()
 
@@ -139,6 +146,7 @@ class RobotEnv(gymnasium.Env[np.ndarray, Any], Generic[P], abc.ABC):
         if settle_steps:
             self.readings = self.backend.step(settle_steps)
         self._start_episode(self.readings)
+        self.pushes.start_episode(self.readings.stamp, seed)
         if self.render_mode == "human":
             self._wall_origin = None
             self.render()
@@ -160,7 +168,7 @@ class RobotEnv(gymnasium.Env[np.ndarray, Any], Generic[P], abc.ABC):
             if not space.contains(action):
                 raise ValueError(f"action {action!r} is not in {space}")
         self._apply_action(action, self.readings)
-        self.readings = readings = self.backend.step(self.physics_steps)
+        self.readings = readings = self._run_period()
         observation = self._observe(readings)
         terms, terminated, info = self._reward_and_termination(observation, readings)
         for name, value in terms.items():
@@ -169,6 +177,13 @@ class RobotEnv(gymnasium.Env[np.ndarray, Any], Generic[P], abc.ABC):
         if self.render_mode == "human":
             self.render()
         return observation, float(sum(terms.values())), terminated, False, info
+
+    def _run_period(self) -> Readings:
+        """One control period: the pushes due (params' push_speed), then running_step of sim time; its readings."""
+        assert self.readings is not None
+        for kick in self.pushes.due(self.readings.stamp):
+            self.backend.kick(kick)
+        return self.backend.step(self.physics_steps)
 
     def render(self) -> np.ndarray | None:  # type: ignore[override]  # gymnasium 1.2: an unbound RenderFrame
         """rgb_array: the current frame; human: update the view and keep sim time no faster than wall time."""

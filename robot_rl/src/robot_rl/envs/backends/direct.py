@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -60,6 +61,12 @@ class DirectBackend(Backend):
     def place(self, base: FrameState, joints: Mapping[str, float]) -> None:
         self.world.set_joint_positions(joints)
         self.world.set_model_state(base)
+
+    def kick(self, velocity_change: tuple[float, float]) -> None:
+        state = self.world.model_state()
+        vx, vy, vz = state.linear_velocity
+        self.world.set_model_state(replace(state, linear_velocity=(vx + velocity_change[0], vy + velocity_change[1],
+                                                                   vz)))
 
     def step(self, physics_steps: int) -> Readings:
         if not self.world.replay_from_reset(physics_steps):

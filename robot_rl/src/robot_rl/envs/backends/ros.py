@@ -23,7 +23,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from gazebo_msgs.msg import ModelState
-from gazebo_msgs.srv import GetPhysicsProperties, SetModelConfiguration, SetModelState
+from gazebo_msgs.srv import GetModelState, GetPhysicsProperties, SetModelConfiguration, SetModelState
 from pybullet_sim.config import parse_robot_config
 from pybullet_sim.names import PHYSICS_SERVICE
 from pybullet_sim.readings import FrameState
@@ -191,6 +191,22 @@ class RosBackend(Backend):
                 raise SimConnectionError(f"service {name} failed: {error}") from None
             if not answer.success:
                 raise SimConnectionError(f"service {name} refused the start pose: {answer.status_message}")
+
+    def kick(self, velocity_change: tuple[float, float]) -> None:
+        names = ("/gazebo/get_model_state", "/gazebo/set_model_state")
+        try:
+            for name in names:
+                rospy.wait_for_service(name, self.timeout)
+            now = rospy.ServiceProxy(names[0], GetModelState)(self._model_name, "world")
+            now.twist.linear.x += velocity_change[0]
+            now.twist.linear.y += velocity_change[1]
+            answer = rospy.ServiceProxy(names[1], SetModelState)(
+                ModelState(model_name=self._model_name, pose=now.pose, twist=now.twist, reference_frame="world"))
+        except (rospy.ServiceException, rospy.ROSException) as error:
+            raise SimConnectionError(f"a push: the sim's model state services failed: {error} (is the sim node "
+                                     f"of this pybullet_sim version running?)") from None
+        if not (now.success and answer.success):
+            raise SimConnectionError(f"a push: the sim refused: {now.status_message} {answer.status_message}")
 
     def close(self) -> None:
         if self._placing is not None:
