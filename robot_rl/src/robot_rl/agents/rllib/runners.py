@@ -26,6 +26,7 @@ import shutil
 import signal
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -144,7 +145,11 @@ def _private_temp_dir() -> Path:
 
 
 def _start_local_ray(temp_dir: Path, cpus: int) -> None:
-    """Ray on this machine, on loopback, in `temp_dir` (_private_temp_dir; close() removes it)."""
+    """Ray on this machine, on loopback, in `temp_dir` (_private_temp_dir; close() removes it). The process's SIGTERM
+    and SIGINT handlers are put back after ray.init, which replaces them (its core worker's SIGTERM handler aborts
+    the process: a training node would die with no checkpoint instead of stopping)."""
+    handlers = {signum: signal.getsignal(signum) for signum in (signal.SIGTERM, signal.SIGINT)} \
+        if threading.current_thread() is threading.main_thread() else {}
     try:
         import ray
         ray.init(address="local", num_cpus=cpus, include_dashboard=False, _temp_dir=str(ray_cluster.ray_dir(temp_dir)),
@@ -154,6 +159,10 @@ def _start_local_ray(temp_dir: Path, cpus: int) -> None:
     except BaseException:
         shutil.rmtree(temp_dir, ignore_errors=True)
         raise
+    finally:
+        for signum, handler in handlers.items():
+            if handler is not None:
+                signal.signal(signum, handler)
 
 
 class RllibEnvs:
@@ -174,6 +183,7 @@ class RllibEnvs:
         self.workers = self
         self.algorithm: Any = None
         self.closed = False
+        self.abandoned = False  # an update under way was abandoned: close() ends the runners without waiting on them
         self._temp_dir: Path | None = None
         self._connected = False
         ray_cluster.prepare_driver()  # before ray is imported
@@ -200,6 +210,11 @@ class RllibEnvs:
         """The algorithm whose runners hold these envs: close() stops it."""
         self.algorithm = algorithm
 
+    def abandon(self) -> None:
+        """An update is under way and will not be waited for (a stop): close() skips the algorithm's stop, which
+        would wait on the runners' calls, and ends Ray and the runners at once."""
+        self.abandoned = True
+
     def take_episodes(self) -> list[EndedEpisode]:
         """Every episode the healthy runners ended since the last call, in order (in_order)."""
         runners = self.algorithm.env_runner_group
@@ -220,7 +235,7 @@ class RllibEnvs:
         import ray
         pids: list[int] = []
         try:
-            if self.algorithm is not None:
+            if self.algorithm is not None and not self.abandoned:
                 if self._temp_dir is not None:  # the runners are processes of this machine's Ray, started here
                     pids = [pid for _, _, pid in self.runner_info()]
                 self.algorithm.stop()

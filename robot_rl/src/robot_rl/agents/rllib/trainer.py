@@ -7,7 +7,9 @@ the driver, one torch thread. After every update the episodes the runners ended 
 each runner's as they ended) and handed to the run's RunLedger: episodes.csv (every episode once), the EP: and
 progress lines, summary.json, learning_curve.png, and runners.csv (which runner, on which node, ran each
 episode). Training stops after the update in which the nepisodes-th episode ended (episodes of that update
-beyond it are not written), at max_steps env steps, or, asked to stop (Ctrl-C), after the update under way.
+beyond it are not written), at max_steps env steps, or when asked to stop (SIGTERM, Ctrl-C): within half a second
+(STOP_POLL_S), the update under way abandoned (it runs in a thread of its own; the checkpoint keeps the weights and
+episodes of the last finished update, and the runners are ended, not waited for).
 
 The checkpoint is weights only: the RLModule's state as numpy arrays (robot_rl.agents.rllib.policy:
 rllib_module.npz, written first as rllib_module.partial.npz), agent.json (its sha256, the params, the
@@ -22,6 +24,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import math
+import threading
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -48,6 +51,7 @@ from .runners import EndedEpisode, RllibEnvs
 RUNNERS_CSV = "runners.csv"
 RUNNERS_COLUMNS = ("episode", "runner", "node", "node_id")
 MODULE = "default_policy"  # RLlib's DEFAULT_MODULE_ID
+STOP_POLL_S = 0.5  # s between two looks at the stop request while an update runs
 
 
 class RllibPpoTrainer:
@@ -68,6 +72,7 @@ class RllibPpoTrainer:
         self.step_budget = max_steps or 0
         self.stopped: str | None = None
         self.env_steps = self.updates = 0
+        self._finished_weights: dict[str, Any] | None = None  # the last finished update's, once one was abandoned
         run.checkpoint_name = agent.checkpoint_name
         config = ppo_config(agent_params, envs.register(), envs.env_config(agent_params.reward_scale),
                             envs.single_observation_space, envs.single_action_space, envs.num_envs, params.gamma,
@@ -141,7 +146,8 @@ class RllibPpoTrainer:
     def save_checkpoint(self) -> None:
         partial = self.run.path / PARTIAL_WEIGHTS
         try:
-            digest = save_weights(partial, self.weights())
+            weights = self.weights() if self._finished_weights is None else self._finished_weights
+            digest = save_weights(partial, weights)
             self.run.checkpoint({"format": CHECKPOINT_FORMAT, "task": self.task.env_id, "agent": self.agent.name,
                                  "agent_params": self.p.to_mapping(), "agent_config": self.agent_config,
                                  "envs": self.envs.num_envs, "episode": self.state.episode,
@@ -203,7 +209,11 @@ class RllibPpoTrainer:
                 if self.should_stop():
                     self.stopped = "interrupted"
                     break
-                result = self.algorithm.train()
+                before = self.weights()
+                result = self._update()
+                if result is None:  # asked to stop during the update: it is abandoned
+                    self._finished_weights, self.stopped = before, "interrupted"
+                    break
                 self.updates += 1
                 self.env_steps += int(result.get(ENV_RUNNER_RESULTS, {}).get(NUM_ENV_STEPS_SAMPLED, 0))
                 for ended in self.envs.take_episodes():
@@ -212,6 +222,27 @@ class RllibPpoTrainer:
                     self._episode_done(ended)
                 self.ledger.log_progress_if_due()
         return self.ledger.close(self._done(), self.stopped)
+
+    def _update(self) -> dict[str, Any] | None:
+        """One algorithm.train() in a thread of its own; None if a stop was asked for before it finished (the envs
+        are then told to end their runners rather than wait for them)."""
+        outcome: dict[str, Any] = {}
+
+        def update() -> None:
+            try:
+                outcome["result"] = self.algorithm.train()
+            except BaseException as error:  # noqa: BLE001 (handed to the main thread, or dropped if abandoned)
+                outcome["error"] = error
+        thread = threading.Thread(target=update, name="rllib-update", daemon=True)
+        thread.start()
+        while thread.is_alive():
+            thread.join(STOP_POLL_S)
+            if thread.is_alive() and self.should_stop():
+                self.envs.abandon()
+                return None
+        if "error" in outcome:
+            raise outcome["error"]
+        return outcome["result"]
 
 
 def make_trainer(agent: AgentSpec, envs: Any, task: TaskSpec[Any], params: TaskParams, run: RunDirectory,
