@@ -6,10 +6,10 @@
 For each seed (the task's `seed` param: Q-learning's RNG, SB3's seed; the sim's noise seed too), over
 ROS with one env, as `./ws run ROBOT task:=TASK agent:=...` trains: the first agent (tabular Q-learning)
 for the task config's nepisodes (or --nepisodes); then the others that can act in the task's action
-space (DQN and PPO on Discrete actions; PPO and SAC on Box) with max_steps:= the env steps that first
-run took, so all of them see the same number of env steps. Each deep agent's params are its default
-file for the task (the task's own config/agents/<task>.<agent>.yaml if there is one: AgentSpec.config_for),
-recorded per run in the JSON and named in the table. Every final policy is evaluated
+space (DQN and PPO on Discrete actions; PPO and SAC on Box; not rllib_ppo, whose runners need Ray) with
+max_steps:= the env steps that first run took, so all of them see the same number of env steps. Each deep agent's
+params are its default file for the task (the task's own config/agents/<task>.<agent>.yaml if there is one:
+AgentSpec.config_for), recorded per run in the JSON and named in the table. Every final policy is evaluated
 greedily (evaluate.py, --episodes episodes, direct backend, seed --eval-seed). Writes
 DIR/comparison.json (every run), DIR/comparison.md (the table: the headline metric of the greedy
 policy, wall time, env steps/s; mean and range over the seeds) and DIR/learning_curves.png (the
@@ -71,6 +71,9 @@ def _agents(task: TaskSpec[Any]) -> list[AgentSpec]:
         env.close()
     agents = []
     for agent in AGENTS.values():
+        if agent.needs_ray:  # the distributed engine (rllib_ppo) is compared by ./ws bench --sections rllib
+            _log(f"{agent.name} left out: it trains on Ray's env runners, not on the one env over ROS compared here")
+            continue
         params = agent.load_params(agent.config_for(task))
         try:
             if params is not None:
