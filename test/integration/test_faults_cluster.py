@@ -13,6 +13,7 @@ from types import SimpleNamespace
 import pytest
 
 from robot_rl import cluster, free_port
+from workspace_tools.processes import group_members
 from workspace_tools.ray_cluster import LoopbackCluster
 
 pytestmark = pytest.mark.ray  # needs Ray (requirements-distributed.txt)
@@ -54,18 +55,6 @@ def wait_until(condition, timeout, what):
     while not condition():
         assert time.monotonic() < deadline, what
         time.sleep(0.1)
-
-
-def group_members(pgid):
-    members = []
-    for entry in os.listdir("/proc"):
-        try:
-            fields = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()
-        except (OSError, ValueError):
-            continue
-        if entry.isdigit() and int(fields[2]) == pgid and fields[0] != "Z":
-            members.append(int(entry))
-    return members
 
 
 def test_two_starts_at_once_make_one_private_node_and_a_sigkilled_one_is_cleaned_by_status(tmp_path):

@@ -11,14 +11,13 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
 import yaml
 
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from workspace_tools.paths import REPO
-from workspace_tools.processes import RosMaster, launch_args, wait_for
+from workspace_tools.processes import RosMaster, alive, group_members, launch_args, wait_for
 from workspace_tools.ray_cluster import LoopbackCluster, process_name
 
 pytestmark = pytest.mark.ray  # needs Ray (requirements-distributed.txt)
@@ -40,13 +39,6 @@ def run_processes(cluster):
     """The cluster's processes that belong to a run (its node's Ray daemons and idle workers aside)."""
     return [f"{pid}: {name[:150]}" for pid in cluster.processes()
             if any(part in (name := process_name(pid)) for part in RUN_PROCESSES)]
-
-
-def alive(pid):
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
-        return False
 
 
 def start_training(master, cluster, tmp_path, log, envs, **changes):
@@ -129,18 +121,6 @@ def test_sigterm_while_an_actor_is_frozen_mid_run_saves_and_ends_within_10_s(clu
         if frozen is not None and alive(frozen):
             os.kill(frozen, signal.SIGKILL)
         master.close()
-
-
-def group_members(pgid):
-    members = []
-    for entry in os.listdir("/proc"):
-        try:
-            fields = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()
-        except (OSError, ValueError):
-            continue
-        if entry.isdigit() and int(fields[2]) == pgid and fields[0] != "Z":
-            members.append(int(entry))
-    return members
 
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])

@@ -14,17 +14,10 @@ import yaml
 
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from workspace_tools.paths import REPO
-from workspace_tools.processes import RosMaster, launch_args, wait_for
+from workspace_tools.processes import RosMaster, alive, launch_args, wait_for
 
 STOP_BOUND = 10.0  # s from SIGTERM to the node's end (issue 42)
 INTERRUPTED = 130
-
-
-def alive(pid):
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
-        return False
 
 
 def command_of(pid):

@@ -9,26 +9,18 @@ import re
 import signal
 import subprocess
 import time
-from pathlib import Path
 
 import pytest
 
 from robot_rl.agents.rllib.policy import WEIGHTS_DIGEST, WEIGHTS_FILE, load_weights
 from workspace_tools.paths import REPO
-from workspace_tools.processes import RosMaster, launch_args, wait_for
+from workspace_tools.processes import RosMaster, alive, launch_args, wait_for
 from workspace_tools.ray_cluster import process_name
 
 pytestmark = [pytest.mark.ray, pytest.mark.deep]  # RLlib (requirements-distributed.txt) on torch
 
 STOP_BOUND = 10.0  # s from SIGTERM to the end (issue 42)
 INTERRUPTED = 130
-
-
-def alive(pid):
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
-        return False
 
 
 def test_sigterm_mid_update_ends_an_rllib_run_within_10_s_and_keeps_its_checkpoint(tmp_path):

@@ -20,6 +20,27 @@ from workspace_tools.launch_reaper import processes_with
 T = TypeVar("T")
 
 
+
+def alive(pid: int) -> bool:
+    """Whether process `pid` runs (a zombie, ended but not yet reaped, does not)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return False
+
+
+def group_members(pgid: int) -> list[int]:
+    """The live processes of process group `pgid`."""
+    members = []
+    for entry in os.listdir("/proc"):
+        try:
+            fields = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()
+        except (OSError, ValueError, IndexError):
+            continue
+        if entry.isdigit() and int(fields[2]) == pgid and fields[0] != "Z":
+            members.append(int(entry))
+    return members
+
 def processes_using(uri: str) -> list[int]:
     """Pids of the processes (other than this one) whose environment points ROS_MASTER_URI at `uri`."""
     return processes_with("ROS_MASTER_URI", uri)
