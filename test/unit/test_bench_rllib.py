@@ -19,6 +19,7 @@ def samples() -> dict:
         s[f"rllib_sb3_sample_{n}"] += [250.0 * n] * 3
         s[f"rllib_sb3_cpu_{n}"] += [4.2] * 3
         s[f"rllib_ray_share_{n}"] += [0.03, 0.06, 0.04]
+        s[f"rllib_sample_call_ray_ms_{n}"] += [2.0, 3.0, 2.5]
         for part, value in zip(CPU_PARTS, (4.94, 1.73, 0.26)):
             s[f"rllib_cpu_{part}_{n}"] += [value] * 3
     return s
@@ -56,6 +57,7 @@ def test_the_rows_are_the_cubes_with_the_ratio_and_share_ranges(capsys):
     assert cells("RLlib, N = 2, CPU ms/env step: Ray's own") == ["0.26", ""]
     assert cells("RLlib, N = 2: Ray's CPU share") == ["0.040", ""]
     assert cells("sampling only, N = 2, RLlib runners, env steps/s") == ["400", ""]
+    assert cells("sampling only, N = 2: Ray's wall per sample call, ms") == ["2.5", ""]
     ranges = [line.split("|")[2].strip() for line in lines if line.startswith("|   RLlib / SB3: lowest-highest")]
     assert ranges == ["1.14-1.36", "0.20-1.00"], "N = 1, then N = 2"
     assert not any(line.startswith("| vector env") for line in lines), "a section not run has no rows"

@@ -18,7 +18,8 @@ Ray's GCS, raylet, its other daemons and idle workers, the env runners), counted
   idle workers) and every thread other than the main one of the driver and of the runners (Ray's core worker:
   gRPC, its event loops).
 Ray's share = ray / total. It is a lower bound: Ray's work inside the two main threads is not in it (driver_main is
-its upper bound's rest).
+its upper bound's rest). And in sampling alone, the wall time Ray adds to one call of every runner's sample(): the
+driver's wall time of the call less the slowest runner's own time in sample() (sample_call_ray_ms).
 
     python -m workspace_tools.bench.rllib rllib|sb3 N STEPS RUNNING_STEP   (run by workspace_tools.bench.orchestrate)
 """
@@ -72,6 +73,13 @@ def _cpu_split(before: dict, after: dict) -> dict[str, float]:
     return {part: parts[part] for part in CPU_PARTS}
 
 
+def _timed_sample(runner: Any) -> tuple[int, float]:
+    """On a runner: one fragment of RLLIB_FRAGMENT env steps (sample()), and the wall seconds it took there."""
+    start = time.perf_counter()
+    episodes = runner.sample(num_timesteps=RLLIB_FRAGMENT)
+    return sum(len(episode) for episode in episodes), time.perf_counter() - start
+
+
 def worker_rllib(n: int, steps: int, running_step: float) -> dict:
     """Agent rllib_ppo's training on n env runners (a private local Ray): env steps/s of Algorithm.train() calls
     until `steps` env steps, the CPU split of that time (module docstring), then sampling alone."""
@@ -95,16 +103,16 @@ def worker_rllib(n: int, steps: int, running_step: float) -> dict:
             elapsed = time.perf_counter() - start
             cpu = _cpu_split(before, _thread_cpu(runners))
             sample_start = time.perf_counter()
-            sampled = algorithm.env_runner_group.foreach_env_runner(
-                lambda runner: sum(len(episode) for episode in runner.sample(num_timesteps=RLLIB_FRAGMENT)),
-                local_env_runner=False)
+            sampled = algorithm.env_runner_group.foreach_env_runner(_timed_sample, local_env_runner=False)
             sample_elapsed = time.perf_counter() - sample_start
     finally:
         envs.close()
     total = sum(cpu.values())
     return {"steps_per_s": done / elapsed, "steps": done,
             "cpu_ms_per_step": {part: 1000.0 * seconds / done for part, seconds in cpu.items()},
-            "ray_cpu_share": cpu["ray"] / total, "sample_steps_per_s": sum(sampled) / sample_elapsed}
+            "ray_cpu_share": cpu["ray"] / total,
+            "sample_steps_per_s": sum(steps for steps, _ in sampled) / sample_elapsed,
+            "sample_call_ray_ms": 1000.0 * (sample_elapsed - max(own for _, own in sampled))}
 
 
 def worker_sb3(n: int, steps: int, running_step: float) -> dict:
@@ -160,6 +168,7 @@ def rllib_rep(run_worker: Callable[[Path, list], dict], folder: Path, rep: int, 
                 for part, value in result["cpu_ms_per_step"].items():
                     s[f"rllib_cpu_{part}_{n}"].append(value)
                 s[f"rllib_ray_share_{n}"].append(result["ray_cpu_share"])
+                s[f"rllib_sample_call_ray_ms_{n}"].append(result["sample_call_ray_ms"])
             else:
                 s[f"rllib_sb3_cpu_{n}"].append(result["cpu_ms_per_step_total"])
         s[f"rllib_ratio_{n}"].append(s[f"rllib_rllib_{n}"][-1] / s[f"rllib_sb3_{n}"][-1])
@@ -178,7 +187,8 @@ def rllib_summary(s: dict, median: Callable[[list], float]) -> dict:
             "rllib_cpu_ms_per_step": {part: by_n(f"rllib_cpu_{part}") for part in CPU_PARTS},
             "sb3_cpu_ms_per_step": by_n("rllib_sb3_cpu"),
             "ray_cpu_share": by_n("rllib_ray_share"),
-            "sample_steps_per_s": {"rllib": by_n("rllib_rllib_sample"), "sb3_pipe": by_n("rllib_sb3_sample")}}
+            "sample_steps_per_s": {"rllib": by_n("rllib_rllib_sample"), "sb3_pipe": by_n("rllib_sb3_sample")},
+            "sample_call_ray_ms": by_n("rllib_sample_call_ray_ms")}
 
 
 def _figure(*keys: str) -> Callable[[dict], Any]:
@@ -211,6 +221,8 @@ def rllib_rows() -> list[tuple[str, Callable[[dict], Any], str, str, str]]:
         for kind, label in (("rllib", "RLlib runners"), ("sb3_pipe", "SB3 vec env")):
             rows.append((f"sampling only, N = {n}, {label}, env steps/s", _figure("sample_steps_per_s", kind, n),
                          "{:.0f}", "", ""))
+        rows.append((f"sampling only, N = {n}: Ray's wall per sample call, ms", _figure("sample_call_ray_ms", n),
+                     "{:.1f}", "", ""))
     return rows
 
 
