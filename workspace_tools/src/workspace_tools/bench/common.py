@@ -11,7 +11,7 @@ from typing import Any
 from robot_rl import TaskParams, TaskSpec, find_task
 from workspace_tools.robots import ROBOTS as ROBOT_REGISTRY
 
-SECTIONS = ("lockstep", "scaling", "deep", "gazebo", "training", "distributed", "sweeps")
+SECTIONS = ("lockstep", "scaling", "deep", "gazebo", "training", "distributed", "sweeps", "rllib")
 SWEEP_EPISODES, SWEEP_EVAL_EPISODES = 400, 5
 SCALING_ENVS = (1, 2, 4)
 DISTRIBUTED_ENVS = (1, 2)

@@ -49,6 +49,10 @@ Sections (--sections, default all):
 - sweeps: `./ws sweep cube` (workspace_tools.sweep, a private local Ray) of one trial against two trials
   run at once, each trial SWEEP_EPISODES cube training episodes and SWEEP_EVAL_EPISODES evaluation
   episodes; trials per hour of wall time, Ray's start and Tune's overhead included; the ratio two / one.
+- rllib (cube only): agent rllib_ppo (RLlib's PPO, its env runners on a private local Ray) against
+  Stable-Baselines3's PPO on pipe workers, direct, at equal settings (workspace_tools.bench.rllib): training env
+  steps/s at N = 1 and 2 envs, their ratio, where the RLlib run's CPU goes (the runners' sample(), the driver's
+  learner, Ray's own: GCS, raylet, Ray's other processes and threads) and Ray's share of it, and sampling alone.
 
 The Gazebo-style step is the tutorials' (robot_rl.backends.GazeboStyleBackend under a normal env): unpause,
 publish the command, wait running_step of sim time (on /clock, throttled to 100 Hz of wall time as

@@ -30,6 +30,7 @@ from workspace_tools.bench.common import (
     SWEEP_EVAL_EPISODES,
     stat_fields,
 )
+from workspace_tools.bench.rllib import rllib_rep, rllib_summary
 from workspace_tools.processes import Processes, RosMaster, launch_args
 from workspace_tools.robots import ROBOTS as ROBOT_REGISTRY
 
@@ -37,6 +38,14 @@ CUBE = ROBOT_REGISTRY["cube"]  # the training and sweep sections train the cube
 
 def _run_worker(processes: Processes, args: list, timeout: float) -> dict:
     result = processes.run([sys.executable, "-m", "workspace_tools.bench.workers", *map(str, args)], timeout=timeout)
+    if result.returncode != 0:
+        raise RuntimeError(f"bench worker {' '.join(map(str, args))} failed:\n{result.stderr[-3000:]}")
+    return json.loads(result.stdout.strip().splitlines()[-1])
+
+
+def _run_module(processes: Processes, args: list, timeout: float) -> dict:
+    """Run `python -m MODULE ARGS...` (args[0] the module) and return the JSON of its last line."""
+    result = processes.run([sys.executable, "-m", *map(str, args)], timeout=timeout)
     if result.returncode != 0:
         raise RuntimeError(f"bench worker {' '.join(map(str, args))} failed:\n{result.stderr[-3000:]}")
     return json.loads(result.stdout.strip().splitlines()[-1])
@@ -240,6 +249,9 @@ def _rep(tmp: Path, rep: int, robot: str, running_step: float, sections: set[str
                  f"({bc_dagger['samples']} in {bc_dagger['wall_s']:.1f} s, fitting {bc_dagger['fit_s']:.1f} s)")
     if "distributed" in sections:
         _distributed_rep(Path(f"{tag}-distributed"), rep, robot, steps, running_step, s)
+    if "rllib" in sections and robot == "cube":
+        rllib_rep(lambda folder, args: _run_module(Processes(folder), args, timeout=600), Path(f"{tag}-rllib"), rep,
+                  running_step, s, _log)
     if "gazebo" in sections:
         for rtf, gazebo_steps in spec.gazebo_steps.items():
             style = _with_sim(Path(f"{tag}-gazebo{rtf}"), robot, rtf, ["gazebo", robot, gazebo_steps, running_step])
@@ -343,6 +355,8 @@ def orchestrate(reps: int, output: Path, running_steps: dict[str, float], sectio
                                                 for n in DISTRIBUTED_ENVS} for transport in ("pipe", "ray")},
                 "node_loss_recovery_s": median(s["node_loss_recovery_s"]),
                 "actors_start_s": median(s["actors_start_s"])}
+        if "rllib" in sections and robot == "cube":
+            r["rllib"] = rllib_summary(s, median)
         if "gazebo" in sections:
             r.update(gazebo_style_rtf1_steps_per_s=median(s["gazebo_1"]),
                      gazebo_style_max_speed_steps_per_s=median(s["gazebo_0"]))

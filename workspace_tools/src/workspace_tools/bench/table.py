@@ -5,6 +5,7 @@ import datetime
 from typing import Any
 
 from workspace_tools.bench.common import CEILING_WARNING, DISTRIBUTED_ENVS, ROBOTS, SCALING_ENVS, SECTIONS
+from workspace_tools.bench.rllib import rllib_rows
 
 
 def _row(rows: list[list[str]], report: dict, label: str, value: Any, fmt: str) -> None:
@@ -104,6 +105,10 @@ def table_rows(report: dict) -> list[list[str]]:
          lambda r: r["distributed"]["actors_start_s"], "{:.1f}")
     _row(rows, report, "node lost: its Ray actor steps again after, s",
          lambda r: r["distributed"]["node_loss_recovery_s"], "{:.1f}")
+    for label, value, fmt, range_label, range_key in rllib_rows():
+        _row(rows, report, label, value, fmt)
+        if range_key:
+            _range_row(rows, report, range_label, range_key)
     _row(rows, report, "Gazebo-style step at RTF 1, steps/s", lambda r: r["gazebo_style_rtf1_steps_per_s"], "{:.1f}")
     _row(rows, report, "Gazebo-style step at max speed, steps/s", lambda r: r["gazebo_style_max_speed_steps_per_s"],
          "{:.1f}")
