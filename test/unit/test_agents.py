@@ -31,8 +31,9 @@ LAUNCH_FILES = ["robot_rl/launch/train.launch", "moving_cube_training/launch/mai
 
 def test_find_agent_and_the_unknown_agent_message():
     assert [find_agent(name).name for name in ("qlearn", "dqn", "ppo", "sac")] == ["qlearn", "dqn", "ppo", "sac"]
-    assert list(AGENTS) == ["qlearn", "dqn", "ppo", "sac", "bc_dagger", "rllib_ppo"]
-    with pytest.raises(ParamError, match=r"^unknown agent 'x' \(known: qlearn, dqn, ppo, sac, bc_dagger, rllib_ppo\)$"):
+    assert list(AGENTS) == ["qlearn", "dqn", "ppo", "sac", "bc_dagger", "ppo_finetune", "rllib_ppo"]
+    with pytest.raises(ParamError, match=r"^unknown agent 'x' \(known: qlearn, dqn, ppo, sac, bc_dagger, ppo_finetune, "
+                                         r"rllib_ppo\)$"):
         find_agent("x")
 
 
@@ -79,12 +80,14 @@ def test_every_task_s_agent_config_names_a_task_and_an_agent_and_loads():
 def test_results_folders_and_checkpoints():
     assert {name: spec.results_name(ONE_DISK_WALK) for name, spec in AGENTS.items()} == \
         {"qlearn": "moving_cube", "dqn": "moving_cube-dqn", "ppo": "moving_cube-ppo", "sac": "moving_cube-sac",
-         "bc_dagger": "moving_cube-bc_dagger", "rllib_ppo": "moving_cube-rllib_ppo"}
+         "bc_dagger": "moving_cube-bc_dagger",
+         "ppo_finetune": "moving_cube-ppo_finetune", "rllib_ppo": "moving_cube-rllib_ppo"}
     assert {name: spec.checkpoint_name for name, spec in AGENTS.items()} == \
         {"qlearn": QTABLE_CHECKPOINT, "dqn": DEEP_CHECKPOINT, "ppo": DEEP_CHECKPOINT, "sac": DEEP_CHECKPOINT,
-         "bc_dagger": DEEP_CHECKPOINT, "rllib_ppo": DEEP_CHECKPOINT}
+         "bc_dagger": DEEP_CHECKPOINT, "ppo_finetune": DEEP_CHECKPOINT, "rllib_ppo": DEEP_CHECKPOINT}
     assert {name: spec.needs_deep for name, spec in AGENTS.items()} == \
-        {"qlearn": False, "dqn": True, "ppo": True, "sac": True, "bc_dagger": True, "rllib_ppo": True}
+        {"qlearn": False, "dqn": True, "ppo": True, "sac": True, "bc_dagger": True, "ppo_finetune": True,
+         "rllib_ppo": True}
 
 
 def test_a_run_folder_s_checkpoint_and_agent(tmp_path):

@@ -67,7 +67,7 @@ def test_trial_names_are_safe_folder_names():
     (["cube", "alpha"], "'alpha' is not an argument NAME:=VALUE"),
     (["robot"], "unknown robot 'robot' (known: cube, hopper)"),
     (["cube", "task:=hop"], "unknown task 'hop' (known: one_disk_walk)"),
-    (["cube", "agent:=a2c"], "unknown agent 'a2c' (known: qlearn, dqn, ppo, sac, bc_dagger, rllib_ppo)"),
+    (["cube", "agent:=a2c"], "unknown agent 'a2c' (known: qlearn, dqn, ppo, sac, bc_dagger, ppo_finetune, rllib_ppo)"),
     (["cube", "name:=../x"], "name:=../x: a sweep's name is letters, digits and ._-"),
     (["cube", "resume:=maybe"], "resume:=maybe: expected true or false"),
     (["cube", "concurrent:=0"], "concurrent:=0: expected a whole number >= 1"),
