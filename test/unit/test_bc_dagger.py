@@ -13,20 +13,14 @@ from hopper_training.robot import CONTACT_SENSOR, IMU_SENSOR, ODOMETRY_SENSOR
 from hopper_training.teacher.params import BcDaggerParams
 from hopper_training.teacher.student import WEIGHTS_FILE
 from hopper_training.teacher.teacher import Teacher
-from robot_rl import AGENTS, DEEP_CHECKPOINT, ParamError, RunDirectory, RunFileError, TrainingHooks, make_env
+from robot_rl import DEEP_CHECKPOINT, ParamError, RunDirectory, RunFileError, TrainingHooks
+
+from bc_dagger_setup import AGENT, end_to_end_env  # noqa: F401 (end_to_end_env: the env fixture)
 
 pytestmark = pytest.mark.deep  # torch
 
-AGENT = AGENTS["bc_dagger"]
 TINY = dict(bc_episodes=2, bc_epochs=1, dagger_rounds=1, dagger_episodes=1, dagger_epochs=1, horizon_s=0.1,
             batch_size=64)
-
-
-@pytest.fixture
-def env():
-    made = make_env(END_TO_END, backend="direct", seed=0)
-    yield made
-    made.close()
 
 
 def test_the_teachers_labels_on_the_students_states_are_the_controllers_output_on_those_readings(env):

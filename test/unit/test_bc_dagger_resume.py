@@ -7,20 +7,14 @@ import pytest
 
 from hopper_training.envs.end_to_end import END_TO_END
 from hopper_training.teacher.trainer import DATA_FILE
-from robot_rl import AGENTS, RunDirectory, RunFileError, TrainingHooks, make_env
+from robot_rl import RunDirectory, RunFileError, TrainingHooks
+
+from bc_dagger_setup import AGENT, end_to_end_env  # noqa: F401 (end_to_end_env: the env fixture)
 
 pytestmark = pytest.mark.deep  # torch
 
-AGENT = AGENTS["bc_dagger"]
 TINY = dict(bc_episodes=2, bc_epochs=1, dagger_rounds=2, dagger_episodes=2, dagger_epochs=1, horizon_s=0.1,
             batch_size=16)
-
-
-@pytest.fixture
-def env():
-    made = make_env(END_TO_END, backend="direct", seed=0)
-    yield made
-    made.close()
 
 
 def train(root, env, name, stop_at=None, resume=False):

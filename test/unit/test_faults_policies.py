@@ -207,3 +207,49 @@ def test_shipping_onto_a_file_is_refused(tmp_path):
     with pytest.raises(ValueError, match="demo: not a folder"):
         ship_run(CUBE_DEMO, tmp_path / "demo")
     assert (tmp_path / "demo").read_text() == "a file"
+
+
+def strings_in(value):
+    """Every string of a JSON or YAML document, keys too."""
+    if isinstance(value, dict):
+        return [text for key, item in value.items() for text in [*strings_in(key), *strings_in(item)]]
+    if isinstance(value, list):
+        return [text for item in value for text in strings_in(item)]
+    return [value] if isinstance(value, str) else []
+
+
+def test_no_shipped_policy_names_an_absolute_path():
+    """A shipped policy carries no path of the machine it was trained on (agent_config shipped package-relative)."""
+    import yaml
+    files = sorted(path for path in REPO.glob("*/policies/*/*") if path.suffix in (".json", ".yaml"))
+    assert REPO / "hopper_training" / "policies" / "end_to_end" / "agent.json" in files
+    for path in files:
+        data = json.loads(path.read_text()) if path.suffix == ".json" else yaml.safe_load(path.read_text())
+        absolute = [text for text in strings_in(data) if text.startswith(("/", "~")) or text[1:3] == ":\\"]
+        assert not absolute, f"{path.relative_to(REPO)} names {absolute}"
+    checkpoint = json.loads((SHIPPED / "end_to_end" / "agent.json").read_text())
+    assert checkpoint["agent_config"] == "robot_rl/config/bc_dagger.yaml"
+    assert (REPO / checkpoint["agent_config"]).is_file(), "the package's file (robot_rl's folder is its package)"
+
+
+@pytest.mark.parametrize("policy", ["end_to_end", pytest.param("residual_in_place_sac", marks=pytest.mark.deep)])
+def test_shipping_writes_agent_config_relative_to_its_package_else_null(tmp_path, policy):
+    package = tmp_path / "src" / "my_tuning"  # a ROS package whose folder is not named as it
+    (package / "config").mkdir(parents=True)
+    (package / "package.xml").write_text("<package format=\"2\">\n  <name>tuned_pkg</name>\n</package>\n")
+    outside = tmp_path / "elsewhere.yaml"
+    for config, expected in ((package / "config" / "agent.yaml", "tuned_pkg/config/agent.yaml"), (outside, None)):
+        run = tmp_path / "run"
+        shutil.rmtree(run, ignore_errors=True)
+        shutil.copytree(SHIPPED / policy, run)
+        for name in ("agent.json", "summary.json"):
+            data = json.loads((run / name).read_text())
+            (run / name).write_text(json.dumps({**data, "agent_config": str(config)}))
+        before = json.loads((run / "agent.json").read_text())
+        destination = tmp_path / "policies" / policy
+        ship_run(run, destination, list(HOPPER_TASKS))
+        for name in ("agent.json", "summary.json"):
+            assert json.loads((destination / name).read_text())["agent_config"] == expected, (config, name)
+        after = json.loads((destination / "agent.json").read_text())
+        assert {k: v for k, v in after.items() if k not in ("agent_config", "model_sha256")} == \
+            {k: v for k, v in before.items() if k not in ("agent_config", "model_sha256")}, "nothing else changes"

@@ -13,6 +13,8 @@ from robot_rl import AGENTS, ParamError, RunFileError, find_agent
 from robot_rl.agents.rllib.params import RllibPpoParams, ppo_config
 from robot_rl.agents.rllib.policy import NumpyPpoPolicy, load_weights, save_weights
 from robot_rl.agents.rllib.runners import in_order
+from robot_rl.agents.sb3.params import NetworkParams
+from robot_rl.params import DeepAgentParams
 
 pytestmark = [pytest.mark.deep, pytest.mark.ray]  # RLlib (requirements-distributed.txt) on torch
 
@@ -60,6 +62,26 @@ def test_an_unknown_key_or_a_bad_value_is_refused_in_one_line(tmp_path):
         AGENT.load_params().with_changes("t", rollout_fragment_length=16).check_batch(2, "agent rllib_ppo")
     with pytest.raises(ParamError, match="acts in Discrete or Box spaces"):
         AGENT.load_params().check_action_space(gymnasium.spaces.MultiBinary(3), "agent rllib_ppo")
+
+
+@pytest.mark.parametrize("agent", ["rllib_ppo", "ppo", "dqn", "sac"])
+def test_the_network_keys_are_declared_once_for_rllib_and_sb3_with_the_same_bounds(tmp_path, agent):
+    shared = ["hidden_layers", "hidden_units", "learning_rate", "reward_scale"]
+    assert [f.name for f in dataclasses.fields(DeepAgentParams)] == shared
+    spec = find_agent(agent)
+    params = spec.load_params()
+    assert isinstance(params, DeepAgentParams) and isinstance(params, RllibPpoParams | NetworkParams)
+    assert [f.name for f in dataclasses.fields(params)][:4] == shared, "the YAML's keys, in their order"
+    for f in dataclasses.fields(params)[:4]:
+        assert f.metadata == next(g.metadata for g in dataclasses.fields(DeepAgentParams) if g.name == f.name), \
+            f"{agent}'s {f.name}: the base's bounds and doc"
+    path = tmp_path / f"{agent}.yaml"
+    for key, value, expected in (("hidden_layers", 9, r"\[1, 8\]"), ("hidden_units", 0, r"\[1, 4096\]"),
+                                 ("learning_rate", 0.0, r"\(0.0, 1.0\]"), ("reward_scale", 0.0, r"\(0.0, 1000000.0\]")):
+        path.write_text(repr(params.to_mapping() | {key: value}).replace("'", '"'))
+        with pytest.raises(ParamError, match=rf"^{re.escape(str(path))}: parameter '{key}' = {value!r} out of range "
+                                             rf"{expected}$"):
+            spec.load_params(path)
 
 
 def test_the_agent_is_registered_with_weights_only_checkpoints():

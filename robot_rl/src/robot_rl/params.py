@@ -143,6 +143,19 @@ class Params:
 
 
 @dataclass(frozen=True, kw_only=True)
+class DeepAgentParams(Params):
+    """What every deep agent's params hold (SB3's `NetworkParams`, RLlib's `RllibPpoParams`): its MLP's shape,
+    Adam's step size and the scale of the rewards it learns from."""
+
+    hidden_layers: int = param(low=1, high=8, doc="hidden layers of the MLP (each of the policy's and the value's)")
+    hidden_units: int = param(low=1, high=4096, doc="units per hidden layer")
+    learning_rate: float = param(low=0.0, low_open=True, high=1.0, doc="Adam's step size")
+    reward_scale: float = param(low=0.0, low_open=True, high=1e6, default=1.0,
+                                doc="the agent learns from the task's rewards times this (the run's files keep "
+                                    "the task's)")
+
+
+@dataclass(frozen=True, kw_only=True)
 class Point(Params):
     x: float
     y: float

@@ -189,8 +189,9 @@ def _open_run(node: NodeParams, results_name: str, checkpoint_name: str, params:
                               f"continues it; a new run needs another name") from None
 
 
-def _completed_summary(run: RunDirectory, params: TaskParams, max_steps: int) -> dict[str, Any] | None:
-    """The run's summary.json if it says the run is complete for this nepisodes (or max_steps), else None."""
+def _completed_summary(run: RunDirectory, nepisodes: int, max_steps: int) -> dict[str, Any] | None:
+    """The run's summary.json if it says the run is complete for this nepisodes (the run's budget: the task's, or
+    the agent's params' count) or max_steps, else None."""
     try:
         summary = json.loads(run.summary_json.read_text())
     except (OSError, ValueError):
@@ -198,7 +199,7 @@ def _completed_summary(run: RunDirectory, params: TaskParams, max_steps: int) ->
     if not isinstance(summary, dict) or not summary.get("completed"):
         return None
     episodes, steps = summary.get("episodes", 0), summary.get("env_steps", 0)
-    return summary if episodes >= params.nepisodes or (max_steps and steps >= max_steps) else None
+    return summary if episodes >= nepisodes or (max_steps and steps >= max_steps) else None
 
 
 def _make_env(task: TaskSpec[Any], params: TaskParams, agent: AgentSpec, envs: int, timeout: float,
@@ -238,8 +239,11 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
         return _fail(str(error))
     results_root = node.results_root
     log_episode = rospy.logdebug if node.quiet else rospy.loginfo
+    own_episodes = agent.own_episodes(agent_params)  # bc_dagger's: its params count them, not nepisodes
+    nepisodes = params.nepisodes if own_episodes is None else own_episodes
     context = RunContext(package=task.package, task=task.name, several_tasks=len(tasks) > 1, agent=node.agent,
-                         default_agent=DEFAULT_AGENT, run_path=Path(), launch_dir=node.launch_dir)
+                         default_agent=DEFAULT_AGENT, run_path=Path(), launch_dir=node.launch_dir,
+                         own_episodes=own_episodes is not None)
     try:
         env = _make_env(task, params, agent, node.envs, node.timeout, node.cluster, node.backend)
     except (SimConnectionError, WorkerError, OSError, ClusterError) as error:  # OSError: e.g. a master refusing
@@ -267,7 +271,7 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     try:
         run = _open_run(node, results_name, checkpoint_name, params, task)
         context = dataclasses.replace(context, run_path=run.path)
-        rospy.loginfo(start_line(dataclasses.replace(context, launch_dir=""), task.env_id, params.nepisodes,
+        rospy.loginfo(start_line(dataclasses.replace(context, launch_dir=""), task.env_id, nepisodes,
                                  node.max_steps, None, node.quiet))
         if agent_config is not None:
             rospy.loginfo("Agent %s's params: %s", agent.name, agent_config)
@@ -291,7 +295,7 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
         trainer = agent.make_trainer(env, task, params, run, hooks, resume=node.resume, agent_params=agent_params,
                                      max_steps=node.max_steps or None, agent_config=agent_config)
         # after the trainer has checked the checkpoint: a damaged one is refused, never called complete
-        complete = _completed_summary(run, params, node.max_steps) if node.resume else None
+        complete = _completed_summary(run, nepisodes, node.max_steps) if node.resume else None
         if complete is not None:
             for line in complete_lines(context, complete):
                 rospy.logwarn(line)

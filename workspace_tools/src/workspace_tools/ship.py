@@ -9,7 +9,10 @@ SB3's `data` entry (JSON with cloudpickled objects, which evaluate.py never read
 out, and agent.json's model_sha256 is that of the new file. A bc_dagger student and an rllib_ppo module are weights
 only already (numpy arrays and JSON numbers): their files are copied as they are, and agent.json's weights_sha256
 still names them (checked again when the policy loads). evaluate.py --run, ./ws demo and resume read a shipped
-policy as the run.
+policy as the run. The run's `agent_config` (in agent.json and summary.json: the agent's params file, absolute on
+the machine that trained) ships as `<package>/<path in the package>` when the file lies in a ROS package (a folder
+with a package.xml: `robot_rl/config/bc_dagger.yaml`), else as null (agent.json's `agent_params` holds its values):
+a shipped policy names no path of the machine it was trained on.
 
 Nothing ships that evaluate.py would not play: the run is loaded as evaluate.py loads it (a deep run's model.zip
 must be the one its agent.json recorded), the policy is written to a folder of its own beside the destination and
@@ -25,6 +28,7 @@ import hashlib
 import importlib
 import json
 import os
+import re
 import shutil
 import tempfile
 import zipfile
@@ -37,12 +41,51 @@ from hopper_training.teacher.student import ARCHITECTURE_FILE, CHECKPOINT_FORMAT
 from robot_rl import RunFileError, TaskSpec, TrainedRun, make_env, write_bytes_atomic, write_json_atomic
 from workspace_tools.robots import ROBOTS
 
-RESULTS = ("params.yaml", "episodes.csv", "learning_curve.png", "summary.json")
+SUMMARY = "summary.json"
+RESULTS = ("params.yaml", "episodes.csv", "learning_curve.png", SUMMARY)
 TABULAR_CHECKPOINT, DEEP_CHECKPOINT, MODEL = "qtable.json", "agent.json", "model.zip"
 RLLIB_WEIGHTS = "rllib_module.npz"  # agent rllib_ppo's weights (numpy arrays; agent.json records their sha256)
 KEPT_ENTRIES = ("_stable_baselines3_version",)  # besides every *.pth
 RENAME_EXCHANGE, AT_FDCWD = 2, -100  # linux/fs.h, fcntl.h
 STUDENT_FILES = (WEIGHTS_FILE, ARCHITECTURE_FILE)  # a bc_dagger run's weights (hopper_training.teacher.student)
+
+
+def shipped_agent_config(value: Any) -> str | None:
+    """A run's `agent_config` as it ships: `<package>/<path in the package>` for a file in a ROS package (the
+    nearest folder above it with a package.xml names the package), a relative one (shipped already) as it is, else
+    None (an absolute path outside any package, or none)."""
+    if not isinstance(value, str) or not value:
+        return None
+    path = Path(value)
+    if not path.is_absolute():
+        return None if ".." in path.parts else path.as_posix()
+    for folder in path.parents:
+        manifest = folder / "package.xml"
+        if manifest.is_file():
+            try:
+                name = re.search(r"<name>\s*([^<\s]+)\s*</name>", manifest.read_text(encoding="utf-8"))
+            except (OSError, UnicodeDecodeError):
+                name = None
+            return f"{name.group(1) if name else folder.name}/{path.relative_to(folder).as_posix()}"
+    return None
+
+
+def _copy_json(source: Path, target: Path) -> dict[str, Any]:
+    """Copy a run's JSON file, its `agent_config` as shipped (shipped_agent_config); the file's bytes as they are
+    when that changes nothing. Returns its contents (agent_config as shipped)."""
+    text = source.read_text(encoding="utf-8")
+    try:
+        data = json.loads(text)
+    except ValueError as error:
+        raise ValueError(f"{source}: not JSON ({error})") from None
+    if isinstance(data, dict) and "agent_config" in data:
+        shipped = shipped_agent_config(data["agent_config"])
+        if shipped != data["agent_config"]:
+            data["agent_config"] = shipped
+            write_json_atomic(target, data)
+            return data
+    shutil.copyfile(source, target)
+    return data if isinstance(data, dict) else {}
 
 
 def weights_only(model_zip: bytes, source: Path) -> bytes:
@@ -130,16 +173,19 @@ def _weight_files(run: Path) -> list[str]:
 
 def _write(run: Path, folder: Path, deep: bool, weights: Sequence[str]) -> list[str]:
     for name in RESULTS:
-        shutil.copyfile(run / name, folder / name)
+        if name == SUMMARY:
+            _copy_json(run / name, folder / name)
+        else:
+            shutil.copyfile(run / name, folder / name)
     if not deep:
         shutil.copyfile(run / TABULAR_CHECKPOINT, folder / TABULAR_CHECKPOINT)
         return [*RESULTS, TABULAR_CHECKPOINT]
+    checkpoint = _copy_json(run / DEEP_CHECKPOINT, folder / DEEP_CHECKPOINT)
     if MODEL not in weights:  # a bc_dagger student or rllib_ppo's module: weights only as trained
-        for name in [DEEP_CHECKPOINT, *weights]:
+        for name in weights:
             shutil.copyfile(run / name, folder / name)
         return [*RESULTS, DEEP_CHECKPOINT, *weights]
     model = weights_only((run / MODEL).read_bytes(), run / MODEL)
-    checkpoint = json.loads((run / DEEP_CHECKPOINT).read_text())
     checkpoint["model_sha256"] = hashlib.sha256(model).hexdigest()
     write_bytes_atomic(folder / MODEL, model)
     write_json_atomic(folder / DEEP_CHECKPOINT, checkpoint)

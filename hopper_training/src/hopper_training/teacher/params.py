@@ -29,6 +29,11 @@ class BcDaggerParams(Params):
     beta_decay: float = param(low=0.0, high=1.0, doc="beta of round r: beta_start x beta_decay^r")
     horizon_s: float = param(low=0.0, low_open=True, high=1e6, doc="sim seconds per collected episode at most")
 
+    def episodes(self) -> int:
+        """The episodes a run collects: behaviour cloning's, then every DAgger round's (the task's nepisodes is not
+        used)."""
+        return self.bc_episodes + self.dagger_rounds * self.dagger_episodes
+
     def beta(self, round_: int) -> float:
         """Round `round_`'s chance per step that the teacher acts instead of the student."""
         return self.beta_start * self.beta_decay ** round_
@@ -38,3 +43,10 @@ class BcDaggerParams(Params):
         if not (isinstance(space, gymnasium.spaces.Box) and space.shape == (3,)):
             raise ParamError(f"{source}: bc_dagger's teacher sets the monoped's three joint targets (task "
                              f"end_to_end, Box(3)); this task's actions are {space}")
+
+
+def episode_budget(agent_params: Params | None) -> int:
+    """The agent registry's episode count of agent bc_dagger: its params' own (BcDaggerParams.episodes)."""
+    if not isinstance(agent_params, BcDaggerParams):
+        raise ValueError(f"agent bc_dagger needs BcDaggerParams, got {type(agent_params).__name__}")
+    return agent_params.episodes()

@@ -207,8 +207,7 @@ class BcDaggerTrainer:
             self.state = run.prepare_resume(self._restore)
             self.resuming = (f"Resuming {run.path} after stage {len(self.rounds)} of {1 + agent_params.dagger_rounds} "
                              f"(episode {self.state.episode}); a stage under way at the stop is collected anew")
-        nepisodes = agent_params.bc_episodes + agent_params.dagger_rounds * agent_params.dagger_episodes
-        self.ledger = RunLedger(run, task, nepisodes, self.state, self, hooks)
+        self.ledger = RunLedger(run, task, agent_params.episodes(), self.state, self, hooks)
 
     # -- the Learner's side (RunLedger) --
     def save_checkpoint(self) -> None:

@@ -64,6 +64,8 @@ class AgentSpec:
                                      # agent_params, source): ParamError when the agent cannot train such envs
     own_envs: bool = False           # its vector_env makes its envs even for envs:=1 (RLlib's env runners)
     needs_ray: bool = False          # needs requirements-distributed.txt (Ray, RLlib) even without cluster:=
+    episodes: str = ""               # "module:attr" of episode_budget(agent_params) -> int: the agent trains its
+                                     # params' own count of episodes, not the task's nepisodes ("": nepisodes)
 
     def results_name(self, task: TaskSpec[Any]) -> str:
         return task.results_name + self.results_suffix
@@ -98,6 +100,11 @@ class AgentSpec:
     def load_params_from(self, values: Any, source: str, strict: bool = False) -> Params | None:
         """The agent's params from a mapping; `strict` (a config file): an unknown key is refused too."""
         return None if self.params is None else _resolve(self.params).from_mapping(values, source, strict=strict)
+
+    def own_episodes(self, agent_params: Params | None) -> int | None:
+        """The episodes a run of this agent trains when its params say (bc_dagger's BC and DAgger episodes); None:
+        the task's nepisodes."""
+        return _resolve(self.episodes)(agent_params) if self.episodes else None
 
     def check_fit(self, env: Any, agent_params: Params | None, source: str) -> None:
         """ParamError in one line when this agent cannot train `env` (one env or N; its actions' kind, or a buffer
@@ -149,7 +156,8 @@ AGENTS: dict[str, AgentSpec] = {spec.name: spec for spec in (
               DEEP_CHECKPOINT, "-bc_dagger", needs_deep=True, trainer="hopper_training.teacher.trainer:make_trainer",
               vector_env="robot_rl.workers.vector_env:make_vector_env",
               policy="hopper_training.teacher.student:greedy_policy",
-              params="hopper_training.teacher.params:BcDaggerParams"),
+              params="hopper_training.teacher.params:BcDaggerParams",
+              episodes="hopper_training.teacher.params:episode_budget"),
     AgentSpec("ppo_finetune", "Stable-Baselines3's PPO fine-tuning a bc_dagger student, task end_to_end",
               DEEP_CHECKPOINT, "-ppo_finetune", needs_deep=True,
               trainer="hopper_training.teacher.finetune:make_trainer",

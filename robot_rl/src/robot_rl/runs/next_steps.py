@@ -27,6 +27,7 @@ class RunContext:
     default_agent: str
     run_path: Path
     launch_dir: str = ""       # where the command ran: paths are shown relative to it when under it
+    own_episodes: bool = False  # the agent trains its params' count of episodes (bc_dagger), not nepisodes
 
     def shown(self, path: Path) -> str:
         if self.launch_dir:
@@ -49,6 +50,15 @@ class RunContext:
                  *([f"agent:={self.agent}"] if self.agent != self.default_agent else []), *args]
         return " ".join(words)
 
+    def further_command(self, episodes: int) -> str:
+        """How to train this run's policy further: resume it with twice its episodes; for an agent whose params
+        count its episodes, a new run with more in its params (a resume keeps the run's params)."""
+        name = self.run_path.name
+        if self.own_episodes:
+            return (f"{self.train_command('agent_config:=FILE')} (a new run: agent {self.agent} trains the episodes "
+                    f"its params count, not nepisodes:=, and a resume keeps the run's params)")
+        return self.train_command("resume:=true", f"run:={name}", f"nepisodes:={2 * episodes}")
+
     def play_command(self) -> str:
         """One greedy episode into a video: ./ws demo's (into demos/), or evaluate.py's (into the run folder)."""
         if self._ws():
@@ -62,8 +72,10 @@ class RunContext:
 
 def start_line(context: RunContext, env_id: str, nepisodes: int, max_steps: int, resumed_from: int | None,
                quiet: bool) -> str:
-    """The one line a run starts with (it begins "Results go to")."""
-    budget = f"{nepisodes} episodes" + (f" or {max_steps} env steps, whichever comes first" if max_steps else "")
+    """The one line a run starts with (it begins "Results go to"); `nepisodes`: the run's budget (the task's, or the
+    agent's params' count when context.own_episodes)."""
+    budget = f"{nepisodes} episodes" + (f" or {max_steps} env steps, whichever comes first" if max_steps else "") + \
+        (f" (as agent {context.agent}'s params count them; nepisodes is not used)" if context.own_episodes else "")
     what = f"resuming after episode {resumed_from}, up to {budget}" if resumed_from is not None else budget
     more = "; every episode's EP: line with quiet:=false" if quiet else ""
     return f"Results go to {context.shown(context.run_path)}: {env_id} with {context.agent}, {what}{more}"
@@ -84,22 +96,20 @@ def headline(summary: Mapping[str, Any]) -> str:
 def end_block(context: RunContext, summary: Mapping[str, Any], video: Path | None) -> list[str]:
     """The lines a completed run ends with: where, how well, and what to run next."""
     episodes = int(summary["episodes"])
-    name = context.run_path.name
     play = context.play_command()
     lines = [f"Done: {context.shown(context.run_path)}/ ({episodes} episodes; learning_curve.png, summary.json)",
              f"  {headline(summary)} (exploring; evaluate.py measures the greedy policy)",
              f"  evaluate it:   {context.evaluate_command()}",
              f"  play it:       {play}" + (f" (or open {context.shown(video)}: its greedy episode)"
                                               if video is not None else ""),
-             f"  train further: {context.train_command('resume:=true', f'run:={name}', f'nepisodes:={2 * episodes}')}"]
+             f"  train further: {context.further_command(episodes)}"]
     return lines
 
 
 def complete_lines(context: RunContext, summary: Mapping[str, Any]) -> list[str]:
     """What a resume of a run that is complete says instead of training (nothing is left to train)."""
     episodes = int(summary["episodes"])
-    name = context.run_path.name
+    further = "train a new run with more" if context.own_episodes else "give more episodes"
     return [f"Run {context.shown(context.run_path)} is complete ({episodes} of {summary.get('nepisodes', episodes)} "
-            f"episodes): nothing to resume. To train it further, give more episodes: "
-            f"{context.train_command('resume:=true', f'run:={name}', f'nepisodes:={2 * episodes}')}",
+            f"episodes): nothing to resume. To train it further, {further}: {context.further_command(episodes)}",
             f"  evaluate it:   {context.evaluate_command()}"]

@@ -13,19 +13,14 @@ from typing import Any
 
 import gymnasium
 
-from ...params import MAX_COUNT, ParamError, Params, param
+from ...params import MAX_COUNT, DeepAgentParams, ParamError, param
 
 
 @dataclass(frozen=True, kw_only=True)
-class RllibPpoParams(Params):
-    """RLlib PPO's settings (gamma and the seed are the task's); see robot_rl/config/rllib_ppo.yaml."""
+class RllibPpoParams(DeepAgentParams):
+    """RLlib PPO's settings (gamma and the seed are the task's; the MLPs' and the learning rate's are
+    DeepAgentParams', as SB3's; the MLPs are tanh); see robot_rl/config/rllib_ppo.yaml."""
 
-    hidden_layers: int = param(low=1, high=8, doc="hidden layers of the policy's and the value's MLPs (tanh)")
-    hidden_units: int = param(low=1, high=4096, doc="units per hidden layer")
-    learning_rate: float = param(low=0.0, low_open=True, high=1.0, doc="Adam's step size")
-    reward_scale: float = param(low=0.0, low_open=True, high=1e6, default=1.0,
-                                doc="the agent learns from the task's rewards times this (the run's files keep the "
-                                    "task's)")
     rollout_fragment_length: int = param(low=1, high=MAX_COUNT, doc="env steps each runner returns per call (SB3's "
                                                                     "n_steps); the train batch is this x runners")
     batch_size: int = param(low=1, high=MAX_COUNT, doc="minibatch size")

@@ -15,7 +15,7 @@ import numpy as np
 from stable_baselines3 import DQN, PPO, SAC
 from stable_baselines3.common.base_class import BaseAlgorithm
 
-from ...params import MAX_COUNT, ParamError, Params, param
+from ...params import MAX_COUNT, DeepAgentParams, ParamError, Params, param
 
 
 def _available_memory() -> int | None:
@@ -31,13 +31,7 @@ def _available_memory() -> int | None:
 
 
 @dataclass(frozen=True, kw_only=True)
-class NetworkParams(Params):
-    hidden_layers: int = param(low=1, high=8, doc="hidden layers of the MLP")
-    hidden_units: int = param(low=1, high=4096, doc="units per hidden layer")
-    learning_rate: float = param(low=0.0, low_open=True, high=1.0, doc="Adam's step size")
-    reward_scale: float = param(low=0.0, low_open=True, high=1e6, default=1.0,
-                                doc="the agent learns from the task's rewards times this (the run's files keep "
-                                    "the task's)")
+class NetworkParams(DeepAgentParams):
 
     def algorithm(self) -> Callable[..., BaseAlgorithm]:
         """The SB3 algorithm these params are for (DQN, PPO and SAC take gamma, BaseAlgorithm does not)."""

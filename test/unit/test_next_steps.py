@@ -1,0 +1,62 @@
+"""What the training node says around a run (robot_rl.runs.next_steps): the start line's episode budget and the
+end block's "train further" hint, true for an agent whose params count its episodes (bc_dagger) as for the rest."""
+import json
+from pathlib import Path
+
+from hopper_training.envs.end_to_end import END_TO_END
+from robot_rl import AGENTS, RunDirectory
+from robot_rl.runs.next_steps import RunContext, complete_lines, end_block, start_line
+from robot_rl.training_node import _completed_summary
+
+BC_DAGGER = AGENTS["bc_dagger"]
+
+
+def context(agent, own_episodes=False):
+    return RunContext(package="hopper_training", task="end_to_end", several_tasks=True, agent=agent,
+                      default_agent="qlearn", run_path=Path("/runs/end_to_end-x/s0"), own_episodes=own_episodes)
+
+
+def summary(episodes):
+    return {"episodes": episodes, "nepisodes": episodes, "completed": True, "env_steps": 1000,
+            "headline_metric": "time_upright_s", "metrics_last_100": {"mean_time_upright_s": 9.5}}
+
+
+def test_bc_dagger_counts_its_own_episodes_the_other_agents_the_tasks():
+    params = BC_DAGGER.load_params()
+    assert (params.bc_episodes, params.dagger_rounds, params.dagger_episodes) == (25, 5, 12)
+    assert BC_DAGGER.own_episodes(params) == params.episodes() == 85
+    assert END_TO_END.default_params().nepisodes == 200, "the task's count, which bc_dagger does not train"
+    for name in ("qlearn", "dqn", "ppo", "sac", "rllib_ppo"):
+        assert AGENTS[name].own_episodes(None) is None, name
+
+
+def test_the_start_line_says_bc_dagger_s_own_episodes_not_the_task_s():
+    line = start_line(context("bc_dagger", own_episodes=True), END_TO_END.env_id,
+                      BC_DAGGER.own_episodes(BC_DAGGER.load_params()), 0, None, False)
+    assert line == ("Results go to /runs/end_to_end-x/s0: MonopedEndToEnd-v0 with bc_dagger, 85 episodes (as agent "
+                    "bc_dagger's params count them; nepisodes is not used)")
+    assert start_line(context("dqn"), END_TO_END.env_id, 200, 0, None, False) == \
+        "Results go to /runs/end_to_end-x/s0: MonopedEndToEnd-v0 with dqn, 200 episodes"
+
+
+def test_bc_dagger_s_train_further_hint_is_a_new_run_not_more_nepisodes():
+    own = context("bc_dagger", own_episodes=True)
+    further = end_block(own, summary(85), None)[-1]
+    assert further == ("  train further: roslaunch hopper_training main.launch task:=end_to_end agent:=bc_dagger "
+                       "agent_config:=FILE (a new run: agent bc_dagger trains the episodes its params count, not "
+                       "nepisodes:=, and a resume keeps the run's params)")
+    complete = complete_lines(own, summary(85))[0]
+    assert "nepisodes:=" not in complete.replace("not nepisodes:=", "") and "resume:=true" not in complete
+    assert complete.startswith("Run /runs/end_to_end-x/s0 is complete (85 of 85 episodes): nothing to resume. To "
+                               "train it further, train a new run with more: ")
+    assert end_block(context("dqn"), summary(85), None)[-1] == \
+        "  train further: roslaunch hopper_training main.launch task:=end_to_end agent:=dqn resume:=true run:=s0 " \
+        "nepisodes:=170"
+
+
+def test_a_run_is_complete_by_its_own_budget(tmp_path):
+    run = RunDirectory.create(tmp_path, BC_DAGGER.results_name(END_TO_END), END_TO_END.default_params().to_mapping(),
+                              END_TO_END.metric_names, run_name="s0", checkpoint_name=BC_DAGGER.checkpoint_name)
+    run.summary_json.write_text(json.dumps(summary(85)))
+    assert _completed_summary(run, 85, 0) is not None, "bc_dagger's 85 episodes are its whole budget"
+    assert _completed_summary(run, 200, 0) is None, "the task's 200 would be more to train"
