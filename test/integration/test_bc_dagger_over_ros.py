@@ -112,3 +112,30 @@ def test_a_bc_dagger_run_stopped_over_ros_in_a_round_resumes_and_repeats_no_epis
     assert summary["completed"] and [r["stage"] for r in summary["rounds"]] == ["bc", "dagger 0"]
     episodes = [int(line.split(",")[0]) for line in (run / "episodes.csv").read_text().splitlines()[1:]]
     assert episodes == list(range(1, 43))
+
+
+def test_a_tiny_ppo_finetune_run_over_ros_resumes_and_evaluates(ros_master, tmp_path):
+    """Track A's RL stage over ROS: agent ppo_finetune from the shipped student, with pushes (end_to_end_push.yaml),
+    a few PPO updates; resume:=true goes on from its model.zip; evaluate.py --run plays it."""
+    agent_config = tmp_path / "ppo_finetune.yaml"
+    agent_config.write_text(yaml.safe_dump({**yaml.safe_load(AGENTS["ppo_finetune"].config_path.read_text()),
+                                            "n_steps": 64, "batch_size": 32, "n_epochs": 2,
+                                            "frozen_policy_updates": 1}))
+    results = tmp_path / "results"
+    args = launch_args(task="end_to_end", agent="ppo_finetune", agent_config=agent_config, results_dir=results,
+                       config=REPO / "hopper_training" / "config" / "end_to_end_push.yaml", video="false",
+                       run="f", nepisodes=1000)
+    run = results / "end_to_end-ppo_finetune" / "f"
+    for budget in (128, 256):
+        training = ros_master.run(["roslaunch", "hopper_training", "main.launch", *args, f"max_steps:={budget}",
+                                   f"resume:={'true' if budget == 256 else 'false'}"], timeout=240)
+        log = training.stdout + training.stderr
+        assert training.returncode == 0, log[-4000:]
+        assert json.loads((run / "agent.json").read_text())["num_timesteps"] == budget, log[-3000:]
+    assert f"Resuming {run.resolve()} after episode" in log, log[-3000:]
+    assert yaml.safe_load((run / "params.yaml").read_text())["push_speed"] == 0.3
+    evaluation = ros_master.run(["rosrun", "hopper_training", "evaluate.py", "--run", str(run), "--episodes", "1",
+                                 "--horizon-s", "0.2", "--push", "0.3"], timeout=120)
+    assert evaluation.returncode == 0, evaluation.stderr[-3000:]
+    report = json.loads(evaluation.stdout.strip().splitlines()[-1])
+    assert report["push"] == 0.3 and report["greedy"]["mean_time_upright_s"] > 0.0
