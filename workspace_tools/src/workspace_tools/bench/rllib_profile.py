@@ -183,7 +183,7 @@ def profile(robot: str, task_name: str | None, hidden_units: int | None, fragmen
         changes["hidden_units"] = hidden_units
     if envs_per_runner != 1:
         changes["envs_per_runner"] = envs_per_runner
-    agent_params = dataclasses.replace(agent.load_params(), **changes)  # type: ignore[type-var]
+    agent_params: Any = dataclasses.replace(agent.load_params(), **changes)  # type: ignore[type-var]
     vector = agent.make_vector_env(task, envs, "direct", 0, params, 10.0)
     import tempfile
 
