@@ -3,6 +3,7 @@ order the runners' episodes go into episodes.csv, and the numpy policy (what eva
 RLModule RLlib builds from the same config, and its weights file checked by sha256."""
 import dataclasses
 import re
+import types
 
 import gymnasium
 import numpy as np
@@ -59,6 +60,12 @@ def test_envs_per_runner_puts_that_many_envs_in_each_runner_s_vector_env(tmp_pat
     with pytest.raises(ParamError, match=r"envs_per_runner 2 needs backend:=direct"):
         params.check_envs(2, True, "agent rllib_ppo")
     params.check_envs(4, False, "agent rllib_ppo")
+    spaces = {"action_space": gymnasium.spaces.Discrete(3),
+              "observation_space": gymnasium.spaces.Box(-1.0, 1.0, (6,), np.float32)}
+    envs = types.SimpleNamespace(num_envs=3, **spaces, **{f"single_{name}": space for name, space in spaces.items()})
+    with pytest.raises(ParamError, match=r"^agent rllib_ppo on T: envs:=3 is not a multiple of envs_per_runner 2$"):
+        AGENT.check_fit(envs, params, "agent rllib_ppo on T")  # the training node's check, before a run folder
+    AGENT.check_fit(envs, AGENT.load_params(), "agent rllib_ppo on T")
     AGENT.load_params().check_envs(3, True, "agent rllib_ppo")  # one env per runner: any N, over ROS too
     path.write_text(AGENT.config_path.read_text().replace("envs_per_runner: 1 ", "envs_per_runner: 0 "))
     with pytest.raises(ParamError, match="envs_per_runner"):

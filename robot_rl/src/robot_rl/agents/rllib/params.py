@@ -74,6 +74,17 @@ class RllibPpoParams(Params):
                              f"(rollout_fragment_length {self.rollout_fragment_length} x {envs} envs)")
 
 
+def check_fit(action_space: gymnasium.spaces.Space[Any], observation_space: gymnasium.spaces.Space[Any], n_envs: int,
+              agent_params: Params | None, source: str) -> None:
+    """The agent registry's fit check of rllib_ppo, before a run folder is made (ParamError in one line): its actions'
+    kind, envs:=N in whole runners of envs_per_runner, a minibatch within the train batch. (Over ROS, envs_per_runner
+    > 1 is refused by the trainer, which knows the backend.)"""
+    assert isinstance(agent_params, RllibPpoParams)
+    agent_params.check_action_space(action_space, source)
+    agent_params.check_envs(n_envs, False, source)
+    agent_params.check_batch(n_envs, source)
+
+
 def ppo_config(p: RllibPpoParams, env_name: str, env_config: dict[str, Any], observation_space: Any,
                action_space: Any, envs: int, gamma: float, seed: int) -> Any:
     """RLlib's PPOConfig for these params: `envs` envs in envs / envs_per_runner remote env runners (one CPU each, a

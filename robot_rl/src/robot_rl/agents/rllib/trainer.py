@@ -64,9 +64,12 @@ class RllibPpoTrainer:
         import torch
         torch.set_num_threads(1)
         source = f"agent {agent.name} on {task.env_id}"
-        agent_params.check_action_space(envs.single_action_space, source)
-        agent_params.check_envs(envs.num_envs, over_ros(envs.backend), source)
-        agent_params.check_batch(envs.num_envs, source)
+        try:  # the registry's fit check asked the same before the run folder was made, but for the backend
+            agent_params.check_action_space(envs.single_action_space, source)
+            agent_params.check_envs(envs.num_envs, over_ros(envs.backend), source)
+            agent_params.check_batch(envs.num_envs, source)
+        except ParamError as error:
+            raise ValueError(str(error)) from None  # the training node's one line
         self.envs, self.task, self.params, self.agent, self.p, self.run = envs, task, params, agent, agent_params, run
         self.agent_config = None if agent_config is None else str(agent_config)
         self.log, self.should_stop, self._hooks = hooks.log, hooks.should_stop, hooks
