@@ -1,10 +1,10 @@
-"""Agent rllib_ppo for real: RLlib's PPO with its env runners on Ray (no mock), the cube on the direct backend.
-On a Ray it starts itself on this machine: a short run writes every results file (episodes.csv with every
-episode once, runners.csv naming each episode's runner), resumes from its weights-only checkpoint, and
-evaluate.py plays it without Ray or torch; on a two-node loopback cluster (workspace_tools.ray_cluster) whose head
-has no CPU, the runners run on the second node; a runner's node killed mid-run, RLlib restarts its runner on the
-other node and the run completes with every episode once. Each run is a driver process of its own, marked, so that no
-process of it may be left."""
+"""Agent rllib_ppo for real: RLlib's PPO with its env runners on Ray (no mock), the cube on the direct backend. On a
+Ray it starts itself on this machine: a short run writes every results file (episodes.csv with every episode once,
+runners.csv naming each episode's runner), resumes from its weights-only checkpoint, and evaluate.py plays it
+without Ray or torch; on a two-node loopback cluster (workspace_tools.ray_cluster) of 1 + 2 CPUs, three runners
+(more than this machine's two cores) run on both nodes and every update has a fragment of each; a runner's node
+killed mid-run, RLlib restarts its runner on the other node and the run completes with every episode once. Each run
+is a driver process of its own, marked, so that no process of it may be left."""
 import csv
 import hashlib
 import json
@@ -34,13 +34,14 @@ from pathlib import Path
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from robot_rl import DEEP_CHECKPOINT, RunDirectory, TrainingHooks, find_agent
 root, nepisodes, resume, cluster = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3] == "resume", sys.argv[4]
+n = int(sys.argv[5])
 agent = find_agent("rllib_ppo")
 params = ONE_DISK_WALK.default_params().with_changes("test", nepisodes=nepisodes)
 run = RunDirectory.latest(root, "moving_cube-rllib_ppo", DEEP_CHECKPOINT) if resume else \\
     RunDirectory.create(root, "moving_cube-rllib_ppo", params.to_mapping(), ONE_DISK_WALK.metric_names,
                         checkpoint_name=DEEP_CHECKPOINT)
 agent_params = agent.load_params().with_changes("test", rollout_fragment_length=32, batch_size=32, n_epochs=2)
-envs = agent.make_vector_env(ONE_DISK_WALK, 2, backend="direct", seed=params.seed, params=params, ros_timeout=10.0,
+envs = agent.make_vector_env(ONE_DISK_WALK, n, backend="direct", seed=params.seed, params=params, ros_timeout=10.0,
                              cluster=cluster or None)
 try:
     lines = []
@@ -55,14 +56,14 @@ print(json.dumps({"run": str(run.path), "summary": summary, "lines": lines, "dri
 """
 
 
-def drive(tmp_path, nepisodes, resume=False, cluster="", env=None, meanwhile=None):
-    """One driver process (marked); `meanwhile()` runs while it trains; returns its JSON and asserts that nothing of
-    it is left."""
+def drive(tmp_path, nepisodes, resume=False, cluster="", env=None, meanwhile=None, envs=2):
+    """One driver process (marked) of `envs` runners; `meanwhile()` runs while it trains; returns its JSON and
+    asserts that nothing of it is left."""
     mark = uuid.uuid4().hex
     environment = {**os.environ, **(env or {}), MARK: mark}
     environment.pop("ROBOT_RL_CLUSTER_DIR", None)  # the test's cluster's token, not the workspace's
     with subprocess.Popen([sys.executable, "-c", DRIVER, str(tmp_path / "results"), str(nepisodes),
-                           "resume" if resume else "new", cluster], env=environment, stdout=subprocess.PIPE,
+                           "resume" if resume else "new", cluster, str(envs)], env=environment, stdout=subprocess.PIPE,
                           stderr=subprocess.PIPE, text=True) as driver:
         try:
             if meanwhile is not None:
@@ -121,16 +122,23 @@ def test_a_short_run_writes_every_results_file_resumes_and_evaluates(tmp_path):
                     seed=3) == reports[0], "the shipped policy plays as the run"
 
 
-def test_on_a_two_node_cluster_the_runners_run_on_the_node_with_cpus(tmp_path):
-    with LoopbackCluster(tmp_path / "cluster", nodes=2, head_cpus=0, cpus_per_node=2) as cluster:
-        result = drive(tmp_path, 4, cluster=cluster.address, env=cluster.driver_environment)
+def test_on_a_two_node_cluster_more_runners_than_cores_send_fragments_from_both_nodes(tmp_path):
+    with LoopbackCluster(tmp_path / "cluster", nodes=2, head_cpus=1, cpus_per_node=2) as cluster:
+        second = raylet_node_id(cluster, 1)
+        # a cube episode takes about 10-20 env steps at first: 3 x 32 steps end fewer than 12 episodes, so those of
+        # the first update are all written (the last update's are cut in runner order) and every runner has some
+        result = drive(tmp_path, 12, cluster=cluster.address, env=cluster.driver_environment, envs=3)
         left = cluster.close()
     assert left == [], f"processes of the cluster left: {[process_name(p) for p in left]}"
-    rows = runners(Path(result["run"]))
-    assert [int(r["episode"]) for r in rows] == list(range(1, 5))
-    assert {r["runner"] for r in rows} == {"1", "2"}
-    assert {r["node_id"] for r in rows} and result["driver_node"] not in {r["node_id"] for r in rows}, \
-        "the head has no CPU: every runner on the second node"
+    assert result["driver_node"] != second
+    summary, rows = result["summary"], runners(Path(result["run"]))
+    assert summary["env_steps"] == 3 * 32 * summary["updates"], "every update: a 32-step fragment of each runner"
+    assert [int(r["episode"]) for r in rows] == list(range(1, 13))
+    where = {(r["runner"], r["node_id"]) for r in rows}
+    assert {runner for runner, _ in where} == {"1", "2", "3"}, "the three runners' episodes"
+    assert {node for _, node in where} == {result["driver_node"], second}, \
+        "one CPU on the head, two on the second node: runners' episodes from both"
+    assert sum(node == second for _, node in where) == 2
 
 
 def raylet_node_id(cluster, i):

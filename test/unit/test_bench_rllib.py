@@ -22,6 +22,11 @@ def samples() -> dict:
         s[f"rllib_sample_call_ray_ms_{n}"] += [2.0, 3.0, 2.5]
         for part, value in zip(CPU_PARTS, (4.94, 1.73, 0.26)):
             s[f"rllib_cpu_{part}_{n}"] += [value] * 3
+    s["rllib_batched_2"] += [100.0, 160.0, 90.0]
+    s["rllib_batched_ratio_2"] += [b / sb3 for b, sb3 in zip(s["rllib_batched_2"], s["rllib_sb3_2"])]
+    s["rllib_batched_sample_2"] += [210.0, 190.0, 200.0]
+    s["rllib_batched_cpu_runner_main_2"] += [3.7, 3.9, 3.8]
+    s["rllib_batched_ray_share_2"] += [0.02, 0.03, 0.025]
     return s
 
 
@@ -41,6 +46,10 @@ def test_the_summary_is_the_median_of_each_figure_by_n_and_is_json():
     assert summary["ray_cpu_share"] == {"1": 0.04, "2": 0.04}
     assert set(summary["rllib_cpu_ms_per_step"]) == {"runner_main", "driver_main", "ray"}
     assert summary["sample_steps_per_s"] == {"rllib": {"1": 200.0, "2": 400.0}, "sb3_pipe": {"1": 250.0, "2": 500.0}}
+    assert summary["batched"] == {"2": {"steps_per_s": 100.0, "ratio_to_sb3": statistics.median([1 / 3, 160 / 150,
+                                                                                                 90 / 147]),
+                                        "runner_cpu_ms_per_step": 3.8, "ray_cpu_share": 0.025,
+                                        "sample_steps_per_s": 200.0}}
 
 
 def test_the_rows_are_the_cubes_with_the_ratio_and_share_ranges(capsys):
@@ -60,6 +69,12 @@ def test_the_rows_are_the_cubes_with_the_ratio_and_share_ranges(capsys):
     assert cells("sampling only, N = 2: Ray's wall per sample call, ms") == ["2.5", ""]
     ranges = [line.split("|")[2].strip() for line in lines if line.startswith("|   RLlib / SB3: lowest-highest")]
     assert ranges == ["1.14-1.36", "0.20-1.00"], "N = 1, then N = 2"
+    batched = "RLlib, N = 2 envs in 1 runner (envs_per_runner 2)"
+    assert cells(f"{batched}, train env steps/s") == ["100", ""]
+    assert cells(f"{batched} / SB3 PPO training") == ["0.61", ""]
+    assert cells(f"{batched}, CPU ms/env step: runner's sample()") == ["3.80", ""]
+    assert [line.split("|")[2].strip() for line in lines if line.startswith("|   batched / SB3: lowest-high")] == \
+        ["0.33-1.07"]
     assert not any(line.startswith("| vector env") for line in lines), "a section not run has no rows"
 
 

@@ -3,6 +3,7 @@ order the runners' episodes go into episodes.csv, and the numpy policy (what eva
 RLModule RLlib builds from the same config, and its weights file checked by sha256."""
 import dataclasses
 import re
+import types
 
 import gymnasium
 import numpy as np
@@ -21,11 +22,11 @@ pytestmark = [pytest.mark.deep, pytest.mark.ray]  # RLlib (requirements-distribu
 AGENT = find_agent("rllib_ppo")
 
 
-def config(params=None, runners=3, action_space=None):
+def config(params=None, envs=3, action_space=None):
     params = params or AGENT.load_params()
     action_space = action_space or gymnasium.spaces.Discrete(5)
     return ppo_config(params, "robot_rl_task", {"x": 1}, gymnasium.spaces.Box(-1.0, 1.0, (6,), np.float32),
-                      action_space, runners, gamma=0.95, seed=7)
+                      action_space, envs, gamma=0.95, seed=7)
 
 
 def test_the_yaml_becomes_rllib_s_ppo_config_on_the_new_api_stack():
@@ -47,6 +48,32 @@ def test_the_yaml_becomes_rllib_s_ppo_config_on_the_new_api_stack():
     assert c.restart_failed_env_runners and c.max_num_env_runner_restarts == params.max_runner_restarts
 
 
+def test_envs_per_runner_puts_that_many_envs_in_each_runner_s_vector_env(tmp_path):
+    path = tmp_path / "rllib_ppo.yaml"
+    path.write_text(AGENT.config_path.read_text().replace("envs_per_runner: 1 ", "envs_per_runner: 2 "))
+    params = AGENT.load_params(path).with_changes("test", rollout_fragment_length=200)
+    assert params.envs_per_runner == 2
+    c = config(params, envs=6)
+    assert (c.num_env_runners, c.num_envs_per_env_runner, c.gym_env_vectorize_mode) == (3, 2, "sync")
+    assert (c.rollout_fragment_length, c.train_batch_size_per_learner) == (200, 1200), \
+        "a fragment of every env per update, as SB3's n_steps x n_envs"
+    with pytest.raises(ParamError, match=r"^agent rllib_ppo: envs:=3 is not a multiple of envs_per_runner 2$"):
+        params.check_envs(3, False, "agent rllib_ppo")
+    with pytest.raises(ParamError, match=r"envs_per_runner 2 needs backend:=direct"):
+        params.check_envs(2, True, "agent rllib_ppo")
+    params.check_envs(4, False, "agent rllib_ppo")
+    spaces = {"action_space": gymnasium.spaces.Discrete(3),
+              "observation_space": gymnasium.spaces.Box(-1.0, 1.0, (6,), np.float32)}
+    envs = types.SimpleNamespace(num_envs=3, **spaces, **{f"single_{name}": space for name, space in spaces.items()})
+    with pytest.raises(ParamError, match=r"^agent rllib_ppo on T: envs:=3 is not a multiple of envs_per_runner 2$"):
+        AGENT.check_fit(envs, params, "agent rllib_ppo on T")  # the training node's check, before a run folder
+    AGENT.check_fit(envs, AGENT.load_params(), "agent rllib_ppo on T")
+    AGENT.load_params().check_envs(3, True, "agent rllib_ppo")  # one env per runner: any N, over ROS too
+    path.write_text(AGENT.config_path.read_text().replace("envs_per_runner: 1 ", "envs_per_runner: 0 "))
+    with pytest.raises(ParamError, match="envs_per_runner"):
+        AGENT.load_params(path)
+
+
 def test_an_unknown_key_or_a_bad_value_is_refused_in_one_line(tmp_path):
     path = tmp_path / "rllib_ppo.yaml"
     path.write_text(AGENT.config_path.read_text() + "num_env_runners: 4\n")
@@ -58,7 +85,7 @@ def test_an_unknown_key_or_a_bad_value_is_refused_in_one_line(tmp_path):
         AGENT.load_params(path)
     assert "\n" not in str(error.value)
     with pytest.raises(ParamError, match=r"batch_size 64 is more than the train batch \(rollout_fragment_length 16 x "
-                                         r"2 runners\)$"):
+                                         r"2 envs\)$"):
         AGENT.load_params().with_changes("t", rollout_fragment_length=16).check_batch(2, "agent rllib_ppo")
     with pytest.raises(ParamError, match="acts in Discrete or Box spaces"):
         AGENT.load_params().check_action_space(gymnasium.spaces.MultiBinary(3), "agent rllib_ppo")
@@ -92,8 +119,8 @@ def test_the_agent_is_registered_with_weights_only_checkpoints():
 
 
 def ended(runner, steps):
-    return {"runner": runner, "node": "127.0.0.1", "node_id": "n", "steps": steps, "return_": float(steps),
-            "terminated": False, "duration": 0.1, "info": {}}
+    return {"runner": runner, "env": runner - 1, "node": "127.0.0.1", "node_id": "n", "steps": steps,
+            "return_": float(steps), "terminated": False, "duration": 0.1, "info": {}}
 
 
 def test_episodes_go_in_by_runner_each_runner_s_in_the_order_they_ended():
@@ -105,7 +132,7 @@ def test_episodes_go_in_by_runner_each_runner_s_in_the_order_they_ended():
 
 
 def torch_module(action_space):
-    c = config(runners=1, action_space=action_space)
+    c = config(envs=1, action_space=action_space)
     spec = dataclasses.replace(c.get_default_rl_module_spec(), observation_space=c.observation_space,
                                action_space=action_space, model_config=c.model_config)
     return spec.build()

@@ -167,7 +167,7 @@ AGENTS: dict[str, AgentSpec] = {spec.name: spec for spec in (
               trainer="robot_rl.agents.rllib.trainer:make_trainer",
               vector_env="robot_rl.agents.rllib.runners:make_rllib_envs",
               policy="robot_rl.agents.rllib.policy:greedy_policy", params="robot_rl.agents.rllib.params:RllibPpoParams",
-              own_envs=True, needs_ray=True),
+              fit="robot_rl.agents.rllib.params:check_fit", own_envs=True, needs_ray=True),
 )}
 
 

@@ -3,10 +3,11 @@ PPO on pipe workers (agent ppo's vector env), on the cube's task, direct backend
 
 Both train RLLIB_STEPS env steps with the generic configs (robot_rl/config/rllib_ppo.yaml and ppo.yaml, whose values
 are the same) but RLLIB_FRAGMENT env steps per env per update (rollout_fragment_length = n_steps), so that a
-configuration takes well under a minute; N = 1 and 2 envs (env runners, pipe workers). Timed: the training loop
-only (RLlib's Algorithm.train() calls, SB3's learn()), Ray's start and the runners' envs made before. Then sampling
-alone: one fragment of every runner (EnvRunner.sample, the policy acting) against SB3's vector env stepped with the
-model's actions (policy.predict), RLLIB_FRAGMENT vector steps.
+configuration takes well under a minute; N = 1 and 2 envs (env runners, pipe workers), and at N = 2 RLlib again with
+both envs in one runner (envs_per_runner 2: one batched forward pass for both, the "batched" figures). Timed: the
+training loop only (RLlib's Algorithm.train() calls, SB3's learn()), Ray's start and the runners' envs made before.
+Then sampling alone: one fragment of every runner (EnvRunner.sample, the policy acting) against SB3's vector env
+stepped with the model's actions (policy.predict), RLLIB_FRAGMENT vector steps.
 
 Where the RLlib run's CPU goes, from /proc (every thread of the driver and of every process below it: the private
 Ray's GCS, raylet, its other daemons and idle workers, the env runners), counted from the first train() to the last:
@@ -21,7 +22,7 @@ Ray's share = ray / total. It is a lower bound: Ray's work inside the two main t
 its upper bound's rest). And in sampling alone, the wall time Ray adds to one call of every runner's sample(): the
 driver's wall time of the call less the slowest runner's own time in sample() (sample_call_ray_ms).
 
-    python -m workspace_tools.bench.rllib rllib|sb3 N STEPS RUNNING_STEP   (run by workspace_tools.bench.orchestrate)
+    python -m workspace_tools.bench.rllib rllib|batched|sb3 N STEPS RUNNING_STEP   (run by bench.orchestrate)
 """
 from __future__ import annotations
 
@@ -41,6 +42,7 @@ from workspace_tools.bench.common import ROBOTS, bench_params, cpu_seconds, stat
 RLLIB_ENVS = (1, 2)
 RLLIB_STEPS = 2048    # env steps of training per configuration (all envs together)
 RLLIB_FRAGMENT = 256  # env steps per env per update: RLlib's rollout_fragment_length, SB3's n_steps
+RLLIB_BATCHED = (2,)  # N at which RLlib runs again with its N envs in one runner (envs_per_runner N)
 ROBOT = "cube"
 CPU_PARTS = ("runner_main", "driver_main", "ray")
 
@@ -74,19 +76,22 @@ def _cpu_split(before: dict, after: dict) -> dict[str, float]:
 
 
 def _timed_sample(runner: Any) -> tuple[int, float]:
-    """On a runner: one fragment of RLLIB_FRAGMENT env steps (sample()), and the wall seconds it took there."""
+    """On a runner: one fragment of RLLIB_FRAGMENT env steps of each of its envs (sample()), and the wall seconds it
+    took there."""
     start = time.perf_counter()
-    episodes = runner.sample(num_timesteps=RLLIB_FRAGMENT)
+    episodes = runner.sample(num_timesteps=RLLIB_FRAGMENT * runner.num_envs)
     return sum(len(episode) for episode in episodes), time.perf_counter() - start
 
 
-def worker_rllib(n: int, steps: int, running_step: float) -> dict:
-    """Agent rllib_ppo's training on n env runners (a private local Ray): env steps/s of Algorithm.train() calls
-    until `steps` env steps, the CPU split of that time (module docstring), then sampling alone."""
+def worker_rllib(n: int, steps: int, running_step: float, envs_per_runner: int = 1) -> dict:
+    """Agent rllib_ppo's training on n envs (n / envs_per_runner env runners, a private local Ray): env steps/s of
+    Algorithm.train() calls until `steps` env steps, the CPU split of that time (module docstring), then sampling
+    alone."""
     from robot_rl import DEFAULT_HOOKS, RunDirectory, find_agent
     agent = find_agent("rllib_ppo")
     task, params = ROBOTS[ROBOT].task, bench_params(ROBOT, running_step)
-    agent_params = dataclasses.replace(agent.load_params(), rollout_fragment_length=RLLIB_FRAGMENT)  # type: ignore
+    agent_params = dataclasses.replace(agent.load_params(), rollout_fragment_length=RLLIB_FRAGMENT,  # type: ignore
+                                       envs_per_runner=envs_per_runner)
     envs = agent.make_vector_env(task, n, "direct", 0, params, 10.0)  # Ray is set up and started here
     from ray.rllib.utils.metrics import ENV_RUNNER_RESULTS, NUM_ENV_STEPS_SAMPLED  # only now: Ray reads its token
     try:
@@ -156,15 +161,18 @@ def worker_sb3(n: int, steps: int, running_step: float) -> dict:
 
 def rllib_rep(run_worker: Callable[[Path, list], dict], folder: Path, rep: int, running_step: float, s: dict,
               log: Callable[[str], None]) -> None:
-    """One repetition: RLlib and SB3 at N = 1 and 2, interleaved, each in a fresh process (run_worker(log folder,
-    args)); into the cube's samples `s`."""
+    """One repetition: RLlib and SB3 at N = 1 and 2 (and RLlib batched at RLLIB_BATCHED), interleaved, each in a
+    fresh process (run_worker(log folder, args)); into the cube's samples `s`."""
     for n in RLLIB_ENVS:
-        for kind in ("rllib", "sb3"):
+        for kind in ("rllib", "sb3", *(("batched",) if n in RLLIB_BATCHED else ())):
             result = run_worker(folder / f"{kind}-{n}", ["workspace_tools.bench.rllib", kind, n, RLLIB_STEPS,
                                                          running_step])
             s[f"rllib_{kind}_{n}"].append(result["steps_per_s"])
             s[f"rllib_{kind}_sample_{n}"].append(result["sample_steps_per_s"])
-            if kind == "rllib":
+            if kind == "batched":
+                s[f"rllib_batched_cpu_runner_main_{n}"].append(result["cpu_ms_per_step"]["runner_main"])
+                s[f"rllib_batched_ray_share_{n}"].append(result["ray_cpu_share"])
+            elif kind == "rllib":
                 for part, value in result["cpu_ms_per_step"].items():
                     s[f"rllib_cpu_{part}_{n}"].append(value)
                 s[f"rllib_ray_share_{n}"].append(result["ray_cpu_share"])
@@ -175,6 +183,11 @@ def rllib_rep(run_worker: Callable[[Path, list], dict], folder: Path, rep: int, 
         log(f"rep {rep + 1} cube: RLlib PPO / SB3 PPO (pipe), N={n}: {s[f'rllib_rllib_{n}'][-1]:.0f}/"
             f"{s[f'rllib_sb3_{n}'][-1]:.0f} env steps/s = {s[f'rllib_ratio_{n}'][-1]:.2f}; Ray's CPU share "
             f"{s[f'rllib_ray_share_{n}'][-1]:.3f}")
+        if n in RLLIB_BATCHED:
+            s[f"rllib_batched_ratio_{n}"].append(s[f"rllib_batched_{n}"][-1] / s[f"rllib_sb3_{n}"][-1])
+            log(f"rep {rep + 1} cube: RLlib PPO with its {n} envs in 1 runner / SB3 PPO (pipe): "
+                f"{s[f'rllib_batched_{n}'][-1]:.0f}/{s[f'rllib_sb3_{n}'][-1]:.0f} env steps/s = "
+                f"{s[f'rllib_batched_ratio_{n}'][-1]:.2f}")
 
 
 def rllib_summary(s: dict, median: Callable[[list], float]) -> dict:
@@ -188,7 +201,13 @@ def rllib_summary(s: dict, median: Callable[[list], float]) -> dict:
             "sb3_cpu_ms_per_step": by_n("rllib_sb3_cpu"),
             "ray_cpu_share": by_n("rllib_ray_share"),
             "sample_steps_per_s": {"rllib": by_n("rllib_rllib_sample"), "sb3_pipe": by_n("rllib_sb3_sample")},
-            "sample_call_ray_ms": by_n("rllib_sample_call_ray_ms")}
+            "sample_call_ray_ms": by_n("rllib_sample_call_ray_ms"),
+            "batched": {str(n): {"steps_per_s": median(s[f"rllib_batched_{n}"]),
+                                 "ratio_to_sb3": median(s[f"rllib_batched_ratio_{n}"]),
+                                 "runner_cpu_ms_per_step": median(s[f"rllib_batched_cpu_runner_main_{n}"]),
+                                 "ray_cpu_share": median(s[f"rllib_batched_ray_share_{n}"]),
+                                 "sample_steps_per_s": median(s[f"rllib_batched_sample_{n}"])}
+                        for n in RLLIB_BATCHED}}
 
 
 def _figure(*keys: str) -> Callable[[dict], Any]:
@@ -223,14 +242,27 @@ def rllib_rows() -> list[tuple[str, Callable[[dict], Any], str, str, str]]:
                          "{:.0f}", "", ""))
         rows.append((f"sampling only, N = {n}: Ray's wall per sample call, ms", _figure("sample_call_ray_ms", n),
                      "{:.1f}", "", ""))
+        if int(n) in RLLIB_BATCHED:
+            label = f"RLlib, N = {n} envs in 1 runner (envs_per_runner {n})"
+            rows += [(f"{label}, train env steps/s", _figure("batched", n, "steps_per_s"), "{:.0f}", "", ""),
+                     (f"{label} / SB3 PPO training", _figure("batched", n, "ratio_to_sb3"), "{:.2f}",
+                      "batched / SB3", f"rllib_batched_ratio_{n}"),
+                     (f"{label}, CPU ms/env step: runner's sample()", _figure("batched", n, "runner_cpu_ms_per_step"),
+                      "{:.2f}", "", ""),
+                     (f"{label}: Ray's CPU share", _figure("batched", n, "ray_cpu_share"), "{:.3f}", "", ""),
+                     (f"sampling only, {label}, env steps/s", _figure("batched", n, "sample_steps_per_s"), "{:.0f}",
+                      "", "")]
     return rows
 
 
 def main(argv: list[str]) -> int:
-    """Run the worker KIND (argv: rllib|sb3 N STEPS RUNNING_STEP) and print its result as one JSON line."""
+    """Run the worker KIND (argv: rllib|batched|sb3 N STEPS RUNNING_STEP) and print its result as one JSON line."""
     kind, n, steps, running_step = argv
-    worker = worker_rllib if kind == "rllib" else worker_sb3
-    print(json.dumps(worker(int(n), int(steps), float(running_step))))
+    if kind == "sb3":
+        result = worker_sb3(int(n), int(steps), float(running_step))
+    else:
+        result = worker_rllib(int(n), int(steps), float(running_step), int(n) if kind == "batched" else 1)
+    print(json.dumps(result))
     return 0
 
 

@@ -8,13 +8,14 @@ this machine on loopback (127.0.0.1), its temp folder private as `./ws cluster`'
 inside it 0700 once it is up; its own token), one CPU per runner. close() stops the algorithm (its runners, and
 with each its env, master and sim node) and the Ray it started, and removes that temp folder.
 
-Runner i (RLlib's worker_index, 1..N) makes its env as env worker i-1 makes its own (robot_rl.workers.base.
-worker_env: the (i-1)-th seed of worker_seeds; over ROS a private master and sim node on its node's loopback,
-their logs in a temporary folder on that node). A runner restarted after its node was lost makes it anew with
-the same seed. `EpisodeTap` wraps that env: the agent learns from the rewards times reward_scale, and every
-episode that ends is kept on the runner (steps, the task's return, terminated, sim time, last info, the
-runner and its node) until the driver takes them (`take_episodes`, after each update). The driver orders them
-by runner, each runner's in the order they ended: the same run repeats the same episodes.csv.
+Runner r (RLlib's worker_index, 1..N/K) holds K = envs_per_runner envs (a sync vector env; K is 1 over ROS), env i =
+(r-1)*K + k made as env worker i makes its own (robot_rl.workers.base.worker_env: the i-th seed of worker_seeds;
+over ROS a private master and sim node on its node's loopback, their logs in a temporary folder on that node). A
+runner restarted after its node was lost makes them anew with the same seeds. `EpisodeTap` wraps that env: the agent
+learns from the rewards times reward_scale, and every episode that ends is kept on the runner (steps, the task's
+return, terminated, sim time, last info, the runner and its node) until the driver takes them (`take_episodes`,
+after each update). The driver orders them by runner, each runner's in the order they ended: the same run repeats
+the same episodes.csv.
 """
 from __future__ import annotations
 
@@ -43,13 +44,15 @@ ENV_NAME = "robot_rl_task"   # the name of the env creator registered with Ray T
 TOKEN = secrets.token_hex(32)  # the local Ray's token: one per process, as Ray reads a driver's token once
 RUNNER_EXIT_TIMEOUT = 15.0  # s for the runners of a Ray started here to end after it shut down
 _ENDED: list[dict[str, Any]] = []  # on a runner: the episodes ended since the driver last took them
+_MADE = [0]  # on a runner: the envs its process made so far (the k-th of its K is the count mod K)
 
 
 @dataclass(frozen=True)
 class EndedEpisode:
     """An episode a runner ended, as the driver receives it."""
 
-    runner: int        # RLlib's worker_index, 1..N
+    runner: int        # RLlib's worker_index, 1..N/K
+    env: int           # the env's index, 0..N-1 (its seed's in worker_seeds)
     node: str          # the runner's node's address
     node_id: str       # Ray's id of that node (nodes on one machine share its address)
     steps: int
@@ -63,10 +66,11 @@ class EpisodeTap(gymnasium.Wrapper[Any, Any, Any, Any]):
     """A runner's env: rewards times `scale` for the learner, each ended episode kept for the driver; close()
     ends the env's private sim and removes its logs."""
 
-    def __init__(self, env: gymnasium.Env[Any, Any], runner: int, scale: float, sim: Any, log_dir: Path | None):
+    def __init__(self, env: gymnasium.Env[Any, Any], runner: int, scale: float, sim: Any, log_dir: Path | None,
+                 index: int = 0):
         super().__init__(env)
         import ray
-        self.runner, self.scale, self.sim, self.log_dir = runner, scale, sim, log_dir
+        self.runner, self.index, self.scale, self.sim, self.log_dir = runner, index, scale, sim, log_dir
         self.node, self.node_id = ray.util.get_node_ip_address(), ray.get_runtime_context().get_node_id()
         self.running_step = float(getattr(env.unwrapped, "running_step", 0.0))
         self.steps, self.total = 0, 0.0
@@ -80,8 +84,8 @@ class EpisodeTap(gymnasium.Wrapper[Any, Any, Any, Any]):
         self.steps += 1
         self.total += float(reward)
         if terminated or truncated:
-            _ENDED.append({"runner": self.runner, "node": self.node, "node_id": self.node_id, "steps": self.steps,
-                           "return_": self.total, "terminated": bool(terminated),
+            _ENDED.append({"runner": self.runner, "env": self.index, "node": self.node, "node_id": self.node_id,
+                           "steps": self.steps, "return_": self.total, "terminated": bool(terminated),
                            "duration": episode_duration(info, self.steps, self.running_step), "info": dict(info)})
         return observation, float(reward) * self.scale, terminated, truncated, info
 
@@ -99,15 +103,18 @@ class EpisodeTap(gymnasium.Wrapper[Any, Any, Any, Any]):
 
 
 def make_runner_env(config: Any) -> EpisodeTap:
-    """RLlib's env creator (registered as ENV_NAME): runner config.worker_index's env (see the module docstring)."""
+    """RLlib's env creator (registered as ENV_NAME): the next of runner config.worker_index's envs (see the module
+    docstring)."""
     recipe: WorkerRecipe = config["recipe"]
-    runner = max(1, int(config.worker_index))
+    runner, per_runner = max(1, int(config.worker_index)), int(config.get("envs_per_runner", 1))
+    index = ((runner - 1) * per_runner + _MADE[0] % per_runner) % config["envs"]
+    _MADE[0] += 1
     signal.signal(signal.SIGCHLD, signal.SIG_DFL)  # stop_process waits for its children (Ray may ignore SIGCHLD)
-    log_dir = Path(tempfile.mkdtemp(prefix=f"robot_rl-rllib-runner{runner}-"))
-    seed = worker_seeds(config["seed"], config["runners"])[(runner - 1) % config["runners"]]
-    env, sim = worker_env(runner - 1, WorkerRecipe(recipe.task, recipe.params, recipe.backend, seed,
-                                                   recipe.ros_timeout, log_dir, False, None, {}))
-    return EpisodeTap(env, runner, config["reward_scale"], sim, log_dir)
+    log_dir = Path(tempfile.mkdtemp(prefix=f"robot_rl-rllib-runner{runner}-env{index}-"))
+    seed = worker_seeds(config["seed"], config["envs"])[index]
+    env, sim = worker_env(index, WorkerRecipe(recipe.task, recipe.params, recipe.backend, seed,
+                                              recipe.ros_timeout, log_dir, False, None, {}))
+    return EpisodeTap(env, runner, config["reward_scale"], sim, log_dir, index)
 
 
 def take_episodes(_runner: Any = None) -> list[dict[str, Any]]:
@@ -196,9 +203,10 @@ class RllibEnvs:
             _start_local_ray(self._temp_dir, n)
         self._connected = True
 
-    def env_config(self, reward_scale: float) -> dict[str, Any]:
+    def env_config(self, reward_scale: float, envs_per_runner: int = 1) -> dict[str, Any]:
         """What every runner's env creator gets (make_runner_env)."""
-        return {"recipe": self.recipe, "seed": self.seed, "runners": self.num_envs, "reward_scale": reward_scale}
+        return {"recipe": self.recipe, "seed": self.seed, "envs": self.num_envs, "envs_per_runner": envs_per_runner,
+                "reward_scale": reward_scale}
 
     def register(self) -> str:
         """Register the runners' env creator with Ray Tune; returns its name."""

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from ...atomic import write_text_atomic
+from ...envs.backends.factory import over_ros
 from ...params import ParamError, Params, TaskParams
 from ...runs.ledger import DEFAULT_HOOKS, RunLedger, TrainingHooks, TrainingState, format_duration, restored_state
 from ...runs.results import EpisodeRecord, RunDirectory, RunFileError, aggregate
@@ -63,8 +64,12 @@ class RllibPpoTrainer:
         import torch
         torch.set_num_threads(1)
         source = f"agent {agent.name} on {task.env_id}"
-        agent_params.check_action_space(envs.single_action_space, source)
-        agent_params.check_batch(envs.num_envs, source)
+        try:  # the registry's fit check asked the same before the run folder was made, but for the backend
+            agent_params.check_action_space(envs.single_action_space, source)
+            agent_params.check_envs(envs.num_envs, over_ros(envs.backend), source)
+            agent_params.check_batch(envs.num_envs, source)
+        except ParamError as error:
+            raise ValueError(str(error)) from None  # the training node's one line
         self.envs, self.task, self.params, self.agent, self.p, self.run = envs, task, params, agent, agent_params, run
         self.agent_config = None if agent_config is None else str(agent_config)
         self.log, self.should_stop, self._hooks = hooks.log, hooks.should_stop, hooks
@@ -74,18 +79,21 @@ class RllibPpoTrainer:
         self.env_steps = self.updates = 0
         self._finished_weights: dict[str, Any] | None = None  # the last finished update's, once one was abandoned
         run.checkpoint_name = agent.checkpoint_name
-        config = ppo_config(agent_params, envs.register(), envs.env_config(agent_params.reward_scale),
+        config = ppo_config(agent_params, envs.register(),
+                            envs.env_config(agent_params.reward_scale, agent_params.envs_per_runner),
                             envs.single_observation_space, envs.single_action_space, envs.num_envs, params.gamma,
                             params.seed)
         try:
             self.algorithm = config.build_algo()
         except Exception as error:  # noqa: BLE001 (RLlib raises Ray's errors, or the env's from a runner)
             text = " ".join(str(error).split())
-            raise WorkerError(f"RLlib could not start its {envs.num_envs} env runners: {type(error).__name__}: "
+            raise WorkerError(f"RLlib could not start its {agent_params.runners(envs.num_envs)} env runners: "
+                              f"{type(error).__name__}: "
                               f"{text[:400]}{'...' if len(text) > 400 else ''}") from None
         envs.attach(self.algorithm)
         for runner, node, pid in envs.runner_info():
-            self.log(f"env runner {runner}/{envs.num_envs}: pid {pid} on node {node}")
+            self.log(f"env runner {runner}/{agent_params.runners(envs.num_envs)}: pid {pid} on node {node}"
+                     f"{f', {agent_params.envs_per_runner} envs' if agent_params.envs_per_runner > 1 else ''}")
         self._resuming = ""
         if resume:
             self.state = run.prepare_resume(self._restore)
@@ -193,7 +201,7 @@ class RllibPpoTrainer:
         with open(self.runners_csv, "a", encoding="utf-8", newline="") as f:
             row = [self.state.episode + 1, ended.runner, ended.node, ended.node_id]
             csv.writer(f, lineterminator="\n").writerow(row)
-        self.ledger.episode_done(episode, ended.return_, math.nan, ended.runner - 1)
+        self.ledger.episode_done(episode, ended.return_, math.nan, ended.env)
 
     def _done(self) -> bool:
         return self.state.episode >= self.params.nepisodes or self.env_steps >= self.max_steps
