@@ -15,7 +15,7 @@ from typing import Any
 
 import gymnasium
 
-from ...params import MAX_COUNT, DeepAgentParams, ParamError, param
+from ...params import MAX_COUNT, DeepAgentParams, ParamError, Params, param
 
 
 @dataclass(frozen=True, kw_only=True)
