@@ -54,6 +54,15 @@ def test_bc_dagger_s_train_further_hint_is_a_new_run_not_more_nepisodes():
         "nepisodes:=170"
 
 
+def test_a_step_budget_run_s_hint_doubles_its_env_steps_and_keeps_its_episode_budget():
+    """A run that ended at max_steps:= (nepisodes:= set far above) trains further by more env steps: a hint of twice
+    its episodes with the config's nepisodes would end the resumed run at once, or never reach the step budget."""
+    budgeted = {**summary(1975), "nepisodes": 1000000, "max_steps": 200000}
+    assert end_block(context("ppo"), budgeted, None)[-1] == \
+        "  train further: roslaunch hopper_training main.launch task:=end_to_end agent:=ppo resume:=true run:=s0 " \
+        "nepisodes:=1000000 max_steps:=400000"
+
+
 def test_a_run_is_complete_by_its_own_budget(tmp_path):
     run = RunDirectory.create(tmp_path, BC_DAGGER.results_name(END_TO_END), END_TO_END.default_params().to_mapping(),
                               END_TO_END.metric_names, run_name="s0", checkpoint_name=BC_DAGGER.checkpoint_name)

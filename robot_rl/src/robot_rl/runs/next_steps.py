@@ -50,13 +50,17 @@ class RunContext:
                  *([f"agent:={self.agent}"] if self.agent != self.default_agent else []), *args]
         return " ".join(words)
 
-    def further_command(self, episodes: int) -> str:
-        """How to train this run's policy further: resume it with twice its episodes; for an agent whose params
+    def further_command(self, episodes: int, nepisodes: int = 0, max_steps: int = 0) -> str:
+        """How to train this run's policy further: resume it with twice its episodes, or, for a run with a step
+        budget (`max_steps`, its episode budget `nepisodes` kept), twice its env steps; for an agent whose params
         count its episodes, a new run with more in its params (a resume keeps the run's params)."""
         name = self.run_path.name
         if self.own_episodes:
             return (f"{self.train_command('agent_config:=FILE')} (a new run: agent {self.agent} trains the episodes "
                     f"its params count, not nepisodes:=, and a resume keeps the run's params)")
+        if max_steps:
+            return self.train_command("resume:=true", f"run:={name}", f"nepisodes:={max(nepisodes, episodes)}",
+                                      f"max_steps:={2 * max_steps}")
         return self.train_command("resume:=true", f"run:={name}", f"nepisodes:={2 * episodes}")
 
     def play_command(self) -> str:
@@ -102,7 +106,7 @@ def end_block(context: RunContext, summary: Mapping[str, Any], video: Path | Non
              f"  evaluate it:   {context.evaluate_command()}",
              f"  play it:       {play}" + (f" (or open {context.shown(video)}: its greedy episode)"
                                               if video is not None else ""),
-             f"  train further: {context.further_command(episodes)}"]
+             f"  train further: {_further(context, summary)}"]
     return lines
 
 
@@ -111,5 +115,11 @@ def complete_lines(context: RunContext, summary: Mapping[str, Any]) -> list[str]
     episodes = int(summary["episodes"])
     further = "train a new run with more" if context.own_episodes else "give more episodes"
     return [f"Run {context.shown(context.run_path)} is complete ({episodes} of {summary.get('nepisodes', episodes)} "
-            f"episodes): nothing to resume. To train it further, {further}: {context.further_command(episodes)}",
+            f"episodes): nothing to resume. To train it further, {further}: {_further(context, summary)}",
             f"  evaluate it:   {context.evaluate_command()}"]
+
+
+def _further(context: RunContext, summary: Mapping[str, Any]) -> str:
+    """context.further_command for the run `summary` describes (its episodes, and its budgets)."""
+    return context.further_command(int(summary["episodes"]), int(summary.get("nepisodes") or 0),
+                                   int(summary.get("max_steps") or 0))
