@@ -8,7 +8,7 @@ import torch
 import hopper_training
 from hopper_training.envs.end_to_end import END_TO_END
 from hopper_training.teacher.finetune import FinetuneParams, FinetunePPO, load_student, student_folder
-from robot_rl import AGENTS, DEEP_CHECKPOINT, ParamError, RunDirectory, TrainingHooks, make_env, package_path
+from robot_rl import AGENTS, DEEP_CHECKPOINT, ParamError, RunDirectory, TrainingHooks, make_env
 
 pytestmark = pytest.mark.deep  # torch
 
@@ -44,19 +44,20 @@ def test_the_config_loads_and_unknown_keys_or_a_missing_student_get_one_line(tmp
     assert isinstance(params, FinetuneParams) and params.algorithm() is FinetunePPO
     kwargs = params.algorithm_kwargs()
     assert kwargs["use_sde"] and kwargs["sde_sample_freq"] == 8 and "student" not in kwargs
-    assert student_folder(params, package_path("hopper_training")).is_dir()
+    assert student_folder(params).is_dir()
     bad = tmp_path / "bad.yaml"
     bad.write_text(AGENT.config_path.read_text() + "log_std: -3\n")
     with pytest.raises(ParamError, match="log_std"):
         AGENT.load_params(bad)
-    with pytest.raises(Exception, match="student.json: not a student's architecture"):
-        start(tmp_path, env, student=str(tmp_path))
+    missing = AGENT.load_params().with_changes("test", student=str(tmp_path))
+    with pytest.raises(ParamError, match=r"^agent ppo_finetune: .*student.json: not a student's architecture"):
+        AGENT.check_fit(env, missing, "agent ppo_finetune")
 
 
 def test_the_actor_starts_as_the_student_and_only_the_critic_learns_while_frozen(tmp_path, env):
     trainer, _ = start(tmp_path, env)
     model = trainer.model
-    student = load_student(student_folder(AGENT.load_params(), package_path("hopper_training")))
+    student = load_student(student_folder(AGENT.load_params()))
     observation, _ = env.reset(seed=5)
     for _ in range(30):
         action, _ = model.predict(observation, deterministic=True)
@@ -87,6 +88,11 @@ def test_a_tiny_run_writes_every_file_resumes_from_its_own_weights_and_plays(tmp
     assert report["task"] == "MonopedEndToEnd-v0" and report["greedy"]["mean_time_upright_s"] > 0.0
 
 
-def test_a_student_of_another_shape_is_refused_in_one_line(tmp_path, env):
+def test_a_student_that_does_not_fit_is_refused_in_one_line_before_any_file(tmp_path, env):
+    """Before a run folder (the registry's fit check), and in the trainer too."""
+    narrow = AGENT.load_params().with_changes("test", hidden_units=64)
+    with pytest.raises(ParamError, match=r"does not fit hidden_layers 2 x hidden_units 64 and this task's 63 "):
+        AGENT.check_fit(env, narrow, "agent ppo_finetune")
+    AGENT.check_fit(env, AGENT.load_params(), "agent ppo_finetune")  # the shipped student fits
     with pytest.raises(ParamError, match="do not fit the actor's"):
         start(tmp_path, env, hidden_units=64)

@@ -77,7 +77,7 @@ class FinetuneParams(PpoParams):
     robot_rl/config/ppo_finetune.yaml."""
 
     student: str = param(doc="the bc_dagger run or shipped policy folder whose student.npz the actor starts "
-                             "as: absolute, or relative to the task's package (e.g. policies/end_to_end)")
+                             "as: absolute, or relative to hopper_training's package (e.g. policies/end_to_end)")
     log_std_init: float = param(low=-20.0, high=2.0, doc="gSDE's log standard deviation at the start (per "
                                                          "feature of the last hidden layer and joint)")
     sde_sample_freq: int = param(low=1, high=1_000_000, doc="env steps between two draws of gSDE's noise")
@@ -104,10 +104,10 @@ class FinetuneParams(PpoParams):
                 "log_std_init": self.log_std_init, "features_extractor_class": Normalise}
 
 
-def student_folder(params: FinetuneParams, package: Path) -> Path:
-    """The folder `params.student` names: absolute, or relative to the task's package."""
+def student_folder(params: FinetuneParams) -> Path:
+    """The folder `params.student` names: absolute, or relative to hopper_training's package (the students' home)."""
     folder = Path(params.student).expanduser()
-    return folder if folder.is_absolute() else package / folder
+    return folder if folder.is_absolute() else package_path("hopper_training") / folder
 
 
 def load_student(folder: Path) -> NumpyStudent:
@@ -120,6 +120,26 @@ def load_student(folder: Path) -> NumpyStudent:
         except (OSError, ValueError, AttributeError) as error:
             raise RunFileError(f"{checkpoint}: not a checkpoint ({error})") from None
     return NumpyStudent.load(folder, digest)
+
+
+def check_fit(action_space: gymnasium.spaces.Space[Any], observation_space: gymnasium.spaces.Space[Any], n_envs: int,
+              agent_params: Any, source: str) -> None:
+    """The agent registry's fit check, before a run folder is made (ParamError in one line): Box actions, a rollout
+    buffer that fits the memory, and a student that loads and fits these params and the task's observation."""
+    assert isinstance(agent_params, FinetuneParams)
+    agent_params.check_action_space(action_space, source)
+    size = int(np.prod(observation_space.shape or (1,)))
+    try:
+        agent_params.check_memory(size, n_envs)
+        student = load_student(student_folder(agent_params))
+    except (ValueError, RunFileError) as error:
+        raise ParamError(f"{source}: {error}") from None
+    layers = [w.shape for w, _ in student.layers]
+    network = [agent_params.hidden_units] * agent_params.hidden_layers
+    if student.mean.shape != (size,) or [n for n, _ in layers[:-1]] != network:
+        raise ParamError(f"{source}: the student {agent_params.student!r} (layers {layers}, {student.mean.shape[0]} "
+                         f"inputs) does not fit hidden_layers {agent_params.hidden_layers} x hidden_units "
+                         f"{agent_params.hidden_units} and this task's {size} observations")
 
 
 def start_from_student(model: FinetunePPO, student: NumpyStudent, source: str) -> None:
@@ -149,7 +169,7 @@ def make_trainer(agent: Any, env: Any, task: Any, params: Any, run: Any, hooks: 
     (a resume takes every weight from the run's model.zip)."""
     assert isinstance(agent_params, FinetuneParams)
     source = f"agent {agent.name}'s student {agent_params.student!r}"
-    student = None if resume else load_student(student_folder(agent_params, package_path(task.package)))
+    student = None if resume else load_student(student_folder(agent_params))
     trainer = DeepTrainer(env, task, params, agent, agent_params, run, hooks, resume, max_steps, agent_config)
     assert isinstance(trainer.model, FinetunePPO)
     trainer.model.frozen_policy_steps = agent_params.frozen_policy_updates * agent_params.n_steps * trainer.n_envs
