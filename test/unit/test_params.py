@@ -54,6 +54,17 @@ def test_with_changes_validates_again():
         p.with_changes("~nepisodes", nepisodes=0)
 
 
+def test_require_saved_accepts_the_same_params_and_names_each_key_that_differs():
+    """A resume's check of a checkpoint's agent params (the SB3, RLlib and bc_dagger trainers call it)."""
+    p = Example.from_mapping(GOOD, SRC)
+    p.require_saved({**GOOD, "seed": 0})  # a default filled in reads the same
+    with pytest.raises(ValueError, match=r"^its agent params differ from this run's \(alpha 0.2 there, 0.1 here, "
+                                         r"nepisodes 7 there, 500 here\): resume with the params the run began with$"):
+        p.require_saved({**GOOD, "alpha": 0.2, "nepisodes": 7})
+    with pytest.raises(ValueError, match=r"^agent_params: parameter 'alpha' = 2.0 out of range"):
+        p.require_saved({**GOOD, "alpha": 2.0})
+
+
 @pytest.mark.parametrize("key", ["running_step", "use_gui"])
 def test_missing(key):
     values = dict(GOOD)

@@ -141,6 +141,20 @@ class Params:
         """A copy with some keys changed, validated again (errors name `source`)."""
         return type(self).from_mapping({**self.to_mapping(), **changes}, source)
 
+    def require_saved(self, saved: Mapping[str, Any]) -> None:
+        """ValueError unless `saved` (a checkpoint's agent_params, today's defaults filled in) reads as these params:
+        a resume trains on with the params its run began with. The message names each key that differs."""
+        try:
+            there = type(self).from_mapping(saved, "agent_params")
+        except ParamError as error:
+            raise ValueError(str(error)) from None
+        if there != self:
+            here = self.to_mapping()
+            differ = ", ".join(f"{key} {value!r} there, {here[key]!r} here"
+                               for key, value in there.to_mapping().items() if value != here[key])
+            raise ValueError(f"its agent params differ from this run's ({differ}): resume with the params the run "
+                             "began with")
+
 
 @dataclass(frozen=True, kw_only=True)
 class DeepAgentParams(Params):

@@ -36,7 +36,6 @@ from robot_rl import (
     AgentSpec,
     Episode,
     EpisodeRecord,
-    ParamError,
     RunDirectory,
     RunFileError,
     RunLedger,
@@ -233,16 +232,7 @@ class BcDaggerTrainer:
             raise ValueError(f"it is of agent {checkpoint['agent']!r}, this run trains {self.agent.name!r}")
         if "stages_done" not in checkpoint:
             raise ValueError("it is from before bc_dagger runs could resume (no stages_done): train a new run")
-        try:
-            saved = BcDaggerParams.from_mapping(checkpoint["agent_params"], "agent_params")
-        except ParamError as error:
-            raise ValueError(str(error)) from None
-        if saved != self.p:
-            here = self.p.to_mapping()
-            differ = ", ".join(f"{key} {value!r} there, {here[key]!r} here"
-                               for key, value in saved.to_mapping().items() if value != here[key])
-            raise ValueError(f"its agent params differ from this run's ({differ}): resume with the params the run "
-                             "began with")
+        self.p.require_saved(checkpoint["agent_params"])
         stages, rounds = checkpoint["stages_done"], checkpoint["rounds"]
         if not (isinstance(stages, int) and isinstance(rounds, list) and len(rounds) == stages
                 and 0 <= stages <= 1 + self.p.dagger_rounds):

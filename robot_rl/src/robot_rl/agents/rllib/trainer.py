@@ -133,12 +133,7 @@ class RllibPpoTrainer:
         state = restored_state(checkpoint, CHECKPOINT_FORMAT, self.task)
         if checkpoint["agent"] != self.agent.name:
             raise ValueError(f"it is of agent {checkpoint['agent']!r}, this run trains {self.agent.name!r}")
-        try:
-            saved = self.p.from_mapping(checkpoint["agent_params"], "agent_params")
-        except ParamError as error:
-            raise ValueError(str(error)) from None
-        if saved != self.p:
-            raise ValueError("its agent params differ from this run's: resume with the params the run began with")
+        self.p.require_saved(checkpoint["agent_params"])
         if checkpoint["envs"] != self.envs.num_envs:
             raise ValueError(f"it trained with envs:={checkpoint['envs']}, this run has {self.envs.num_envs}: the "
                              f"train batch would differ")

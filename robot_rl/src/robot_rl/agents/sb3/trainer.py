@@ -41,7 +41,7 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecEnvWrapper
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvObs, VecEnvStepReturn
 
-from ...params import ParamError, Params, TaskParams
+from ...params import Params, TaskParams
 from ...runs.ledger import (
     DEFAULT_HOOKS,
     Learner,
@@ -198,16 +198,8 @@ class DeepTrainer(Learner):
         state = restored_state(checkpoint, CHECKPOINT_FORMAT, self.task)
         if checkpoint["agent"] != self.agent.name:
             raise ValueError(f"it is of agent {checkpoint['agent']!r}, this run trains {self.agent.name!r}")
-        try:  # its params with today's defaults (a checkpoint from before reward_scale has none)
-            saved = self.agent_params.from_mapping(checkpoint["agent_params"], "agent_params")
-        except ParamError as error:
-            raise ValueError(str(error)) from None
-        if saved != self.agent_params:
-            here = self.agent_params.to_mapping()
-            differ = ", ".join(f"{key} {value!r} there, {here[key]!r} here"
-                               for key, value in saved.to_mapping().items() if value != here[key])
-            raise ValueError(f"its agent params differ from this run's ({differ}): resume with the params the run "
-                             "began with")
+        # its params with today's defaults (a checkpoint from before reward_scale has none)
+        self.agent_params.require_saved(checkpoint["agent_params"])
         num_timesteps = checkpoint["num_timesteps"]
         if not (isinstance(num_timesteps, int) and num_timesteps >= 0):
             raise ValueError(f"num_timesteps {num_timesteps!r} is not a count")
