@@ -53,11 +53,9 @@ class Normalise(BaseFeaturesExtractor):
 class FinetunePPO(PPO):
     """SB3's PPO whose actor (the policy network, its action layer and its noise) is held while the run's env
     steps are at most `frozen_policy_steps`: only the critic learns then. Counted in env steps (num_timesteps,
-    which a resume restores), so a resumed run does not freeze its actor again."""
+    which a resume restores), so a resumed run does not freeze its actor again; make_trainer sets it."""
 
-    def __init__(self, *args: Any, frozen_policy_steps: int = 0, **kwargs: Any):
-        self.frozen_policy_steps = frozen_policy_steps
-        super().__init__(*args, **kwargs)
+    frozen_policy_steps: int = 0
 
     def actor_parameters(self) -> list[torch.nn.Parameter]:
         policy = self.policy
