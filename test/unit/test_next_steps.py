@@ -3,12 +3,20 @@ end block's "train further" hint, true for an agent whose params count its episo
 import json
 from pathlib import Path
 
+import pytest
+
 from hopper_training.envs.end_to_end import END_TO_END
 from robot_rl import AGENTS, RunDirectory
-from robot_rl.runs.next_steps import RunContext, complete_lines, end_block, start_line
+from robot_rl.runs.next_steps import WS_RUN_VARIABLE, RunContext, complete_lines, end_block, start_line
 from robot_rl.training_node import _completed_summary
 
 BC_DAGGER = AGENTS["bc_dagger"]
+
+
+@pytest.fixture(autouse=True)
+def not_under_ws_run(monkeypatch):
+    """The commands as plain roslaunch's: no $WS_RUN (./ws run's, which its nodes read) from the caller."""
+    monkeypatch.delenv(WS_RUN_VARIABLE, raising=False)
 
 
 def context(agent, own_episodes=False):
