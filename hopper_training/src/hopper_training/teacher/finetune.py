@@ -26,11 +26,9 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 
-from robot_rl import DeepTrainer, ParamError, PpoParams, RunFileError, package_path, param
+from robot_rl import DEEP_CHECKPOINT, DeepTrainer, ParamError, PpoParams, RunFileError, package_path, param
 
 from .student import NumpyStudent
-
-CHECKPOINT_JSON = "agent.json"  # a bc_dagger run's or shipped policy's checkpoint, naming the weights' sha256
 
 
 class Normalise(BaseFeaturesExtractor):
@@ -111,7 +109,7 @@ def student_folder(params: FinetuneParams) -> Path:
 def load_student(folder: Path) -> NumpyStudent:
     """The student in `folder` (student.npz, its sha256 checked against the folder's agent.json where it has one)."""
     digest = None
-    checkpoint = folder / CHECKPOINT_JSON
+    checkpoint = folder / DEEP_CHECKPOINT  # a bc_dagger run's or shipped policy's agent.json, naming the sha256
     if checkpoint.is_file():
         try:
             digest = json.loads(checkpoint.read_text(encoding="utf-8")).get("weights_sha256")
