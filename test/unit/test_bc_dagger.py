@@ -2,12 +2,14 @@
 the student's own states, a tiny run (2 short teacher episodes, 1 BC epoch, one DAgger round) writes every file,
 and evaluate.py's loader plays its student with the controller made unusable."""
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 import hopper_training
 from hopper_training.controller.core import HopController, HopGains, hop_input
+from hopper_training.controller.policy import FIVE_MS_GAIN_CHANGES
 from hopper_training.envs.end_to_end import END_TO_END
 from hopper_training.robot import CONTACT_SENSOR, IMU_SENSOR, ODOMETRY_SENSOR
 from hopper_training.teacher.params import BcDaggerParams
@@ -32,7 +34,7 @@ def test_the_teachers_labels_on_the_students_states_are_the_controllers_output_o
         labels.append(teacher.label(observation))
         readings.append(env.unwrapped.readings)
         observation, *_ = env.step(rng.uniform(-0.3, 0.3, 3).astype(np.float32))
-    controller, p = HopController(HopGains()), env.unwrapped.params
+    controller, p = HopController(replace(HopGains(), **FIVE_MS_GAIN_CHANGES)), env.unwrapped.params
     start = np.array([p.start_pose.haa, p.start_pose.hfe, p.start_pose.kfe])
     for label, r in zip(labels, readings):
         targets = controller.update(hop_input(r.joints, r.imu(IMU_SENSOR), r.odometry(ODOMETRY_SENSOR),

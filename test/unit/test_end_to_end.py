@@ -9,6 +9,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 from hopper_training.envs.end_to_end import END_TO_END, FRAME_SIZE, reward_terms, tilt_angle
+from hopper_training.robot import base_rpy
 from robot_rl import make_env
 
 pytestmark = pytest.mark.deep  # imports Stable-Baselines3
@@ -45,17 +46,39 @@ def test_the_observation_stacks_frames_newest_first_and_the_last_action(env):
     assert np.array_equal(third[:-3].reshape(PARAMS.history, FRAME_SIZE)[1:3], frames2[:2])
 
 
+def test_observe_yaw_puts_the_bases_yaw_as_cos_and_sin_between_the_frames_and_the_action():
+    params = PARAMS.with_changes("test", observe_yaw=True)
+    env = make_env(END_TO_END, params=params, backend="direct", seed=0)
+    try:
+        check_env(env.unwrapped, skip_render_check=True)
+        assert env.observation_space.shape == (PARAMS.history * FRAME_SIZE + 2 + 3,)
+        env.reset(seed=3)
+        for _ in range(200):  # hop about a little, so that the yaw is not 0
+            observation, *_ = env.step(np.array([0.3, -0.2, 0.1], np.float32))
+        yaw = base_rpy(env.unwrapped.readings)[2]
+        assert abs(yaw) > 1e-4
+        assert observation[-5:-3] == pytest.approx([math.cos(yaw), math.sin(yaw)], abs=1e-6)
+        assert np.array_equal(observation[-3:], np.array([0.3, -0.2, 0.1], np.float32))
+    finally:
+        env.close()
+
+
 def test_the_reward_terms_on_hand_made_values():
     p = PARAMS
     still = np.zeros(3)
     upright = reward_terms(p, 0.0, None, still, still)
-    assert upright == {"alive": p.alive_reward, "upright": p.upright_weight, "hop": 0.0, "action_rate": 0.0}
+    assert upright == {"alive": p.alive_reward, "upright": p.upright_weight, "hop": 0.0, "action_rate": 0.0,
+                       "speed": 0.0}
     leaning = reward_terms(p, 0.3, None, still, still)
     assert leaning["upright"] == pytest.approx(p.upright_weight * math.exp(-0.09 / p.upright_scale))
     assert reward_terms(p, 0.0, 0.1, still, still)["hop"] == pytest.approx(p.hop_weight * 0.1)
     assert reward_terms(p, 0.0, 5.0, still, still)["hop"] == pytest.approx(p.hop_weight * p.hop_cap_s)  # capped
     jump = reward_terms(p, 0.0, None, np.array([0.5, 0.0, -0.5]), still)
     assert jump["action_rate"] == pytest.approx(-p.action_rate_weight * 0.5)
+    assert reward_terms(p, 0.0, None, still, still, 0.5)["speed"] == 0.0, "in place (weight 0) speed is free"
+    forward = p.with_changes("test", target_speed=0.4, speed_weight=2.0)
+    assert reward_terms(forward, 0.0, None, still, still, 0.4)["speed"] == 0.0
+    assert reward_terms(forward, 0.0, None, still, still, 0.1)["speed"] == pytest.approx(-2.0 * 0.09)
     assert tilt_angle(0.3, 0.0) == pytest.approx(0.3) and tilt_angle(0.2, 0.2) > 0.2
 
 

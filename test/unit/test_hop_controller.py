@@ -18,12 +18,14 @@ from hopper_training.controller.core import (
     hips_for_foot,
     level_rotation,
 )
-from hopper_training.controller.policy import ControllerPolicy, controller_params
+from hopper_training.controller.policy import FIVE_MS_GAIN_CHANGES, ControllerPolicy, controller_params
 from hopper_training.controller.trials import lean, load_sim_config, make_world, run_trial
+from hopper_training.envs.end_to_end import END_TO_END
 from hopper_training.robot import MONOPED
 from pybullet_sim.config import parse_robot_config
 from pybullet_sim.errors import ConfigError
-from robot_rl import Episode, ScriptedPolicy, aggregate, evaluation
+from robot_rl import Episode, ScriptedPolicy, aggregate, evaluation, make_env
+from robot_rl.evaluation import with_push
 
 UPRIGHT = (0.0, 0.0, 0.0, 1.0)
 
@@ -235,6 +237,30 @@ def test_a_slow_control_period_loses_the_robot():
     finally:
         world.close()
     assert result.fell
+
+
+def upright_under_pushes(gain_changes, episodes):
+    """end_to_end (5 ms) with 0.3 m/s pushes, evaluation seed 1000: each episode's upright-the-whole-10-s."""
+    env = make_env(END_TO_END, params=with_push(END_TO_END.default_params(), 0.3), backend="direct", seed=1000)
+    try:
+        policy, upright = ControllerPolicy(env, gain_changes=gain_changes), []
+        observation, _ = env.reset(seed=1000)
+        for _ in range(episodes):
+            policy.reset()
+            terminated = truncated = False
+            while not (terminated or truncated):
+                observation, _, terminated, truncated, _ = env.step(policy(observation))
+            upright.append(not terminated)
+            observation, _ = env.reset()
+    finally:
+        env.close()
+    return upright
+
+
+def test_at_5_ms_a_lower_speed_gain_takes_the_pushes_raiberts_default_falls_to():
+    """FIVE_MS_GAIN_CHANGES (the teacher's): the default placement_kv of 0.2 s over-corrects a push at 5 ms."""
+    assert upright_under_pushes({}, 1) == [False]
+    assert upright_under_pushes(FIVE_MS_GAIN_CHANGES, 3) == [True, True, True]
 
 
 # -- evaluate.py --policy controller ----------------------------------------------------------------------

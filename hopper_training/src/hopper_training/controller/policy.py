@@ -8,6 +8,7 @@ into the action.
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import replace
 from typing import Any
 
@@ -19,19 +20,24 @@ from ..robot import CONTACT_SENSOR, IMU_SENSOR, ODOMETRY_SENSOR
 from .core import HopController, HopGains, hop_input
 
 CONTROL_PERIOD = 0.001  # s: the env's running_step under the controller
+FIVE_MS_GAIN_CHANGES = {"placement_kv": 0.1}
+"""HopGains changed at a 5 ms control period (end_to_end's: the teacher, and --policy controller there). Raibert's
+speed gain of 0.2 s over-corrects a push at 5 ms: with 0.3 m/s pushes it stays up in 14 of 40 episodes (evaluation
+seed 2000), 40 of 40 with 0.1 s; without pushes both hop 20 of 20 (docs/research/2026-11-27-teacher-pushes.md).
+Changes, not a HopGains: nothing of the controller is built where it is only imported (test_demo.py's refusal)."""
 
 
 class ControllerPolicy:
     """observation -> action of an env in action_mode targets; reset() at each episode's start."""
 
-    def __init__(self, env: Any, speed: float = 0.0):
+    def __init__(self, env: Any, speed: float = 0.0, gain_changes: Mapping[str, float] | None = None):
         self.env = env.unwrapped
         params = self.env.params
         if params.action_mode != "targets":
             raise ValueError(f"the controller policy needs action_mode targets, the env has {params.action_mode!r}")
         self.start = np.array([params.start_pose.haa, params.start_pose.hfe, params.start_pose.kfe])
         self.target_range = params.target_range
-        self.controller = HopController(replace(HopGains(), speed=(speed, 0.0)))
+        self.controller = HopController(replace(HopGains(), speed=(speed, 0.0), **(gain_changes or {})))
 
     def reset(self) -> None:
         self.controller.reset()

@@ -9,7 +9,8 @@ Action: Box(3) in [-1, 1] (action_mode targets): haa, hfe, kfe targets start_pos
     clamped to the URDF limits; 0 is the crouch.
 Start: the crouch, foot on the ground, leaning initial_tilt (0.02-0.05 rad) towards a random heading.
 Observation: Box(history x 15 + 3,) float32: `history` frames (default 4), the newest first, then the last
-    action. At reset every frame is the first one and the last action is 0 (the crouch). One frame:
+    action; with observe_yaw, the base's yaw as cos and sin between the frames and the action (+ 2). At reset
+    every frame is the first one and the last action is 0 (the crouch). One frame:
     0 roll, 1 pitch (rad, IMU)
     2 roll rate, 3 pitch rate (rad/s, IMU, base frame)
     4-6 base linear velocity (m/s, odometry) in the heading frame: world velocity turned by -yaw, so that the
@@ -24,6 +25,8 @@ Reward: the sum of the terms, each in info as reward_<term> (reward_terms below;
     hop          hop_weight x min(flight time, hop_cap_s), paid once per hop at its touchdown: hopping pays, a
                  single long flight no more than hop_cap_s of one
     action_rate  -action_rate_weight x ||a_t - a_(t-1)||^2: chattering targets cost
+    speed        -speed_weight x (v_x - target_speed)^2, v_x the base's velocity along world +x (m/s): hopping at
+                 the commanded speed (0 weight in end_to_end.yaml: in place; end_to_end_forward.yaml: 0.4 m/s)
     fall         done_reward, alone, on the step that ends the episode by a fall (a fixed penalty: nothing
                  pays for falling far or falling late)
 Terminated: base height outside [min_height, max_height), or abs(roll) or abs(pitch) >= max_incl (0.6 rad).
@@ -46,6 +49,7 @@ from ..state import monoped_state_key
 from .base import MonopedBaseEnv, monoped_metrics
 
 FRAME_SIZE = 15
+YAW_SIZE = 2
 ACTION_SIZE = 3
 
 
@@ -57,6 +61,10 @@ class EndToEndParams(MonopedParams):
     hop_weight: float = param(low=0.0, doc="reward per second of flight, paid at touchdown")
     hop_cap_s: float = param(low=0.0, doc="s: one hop's flight pays at most this long")
     action_rate_weight: float = param(low=0.0, doc="penalty weight of ||a_t - a_(t-1)||^2")
+    target_speed: float = param(low=-1.0, high=1.0, default=0.0,
+                                doc="m/s along world +x to hop at: the speed term's target and the teacher's command")
+    speed_weight: float = param(low=0.0, default=0.0, doc="penalty weight of (v_x - target_speed)^2, m/s world x")
+    observe_yaw: bool = param(default=False, doc="the base's yaw (cos, sin) in the observation: the world's +x")
 
 
 END_TO_END = TaskSpec(
@@ -73,13 +81,14 @@ def tilt_angle(roll: float, pitch: float) -> float:
 
 
 def reward_terms(p: EndToEndParams, tilt: float, flight_s: float | None, action: np.ndarray,
-                 last_action: np.ndarray) -> dict[str, float]:
+                 last_action: np.ndarray, speed_x: float = 0.0) -> dict[str, float]:
     """The terms of a step upright: `tilt` (rad from vertical), `flight_s` the flight that ended with this step's
-    touchdown (None: no touchdown this step), the action and the one before."""
+    touchdown (None: no touchdown this step), the action and the one before, the base's speed along world +x."""
     hop = 0.0 if flight_s is None else p.hop_weight * min(flight_s, p.hop_cap_s)
     change = np.asarray(action, np.float64) - np.asarray(last_action, np.float64)
     return {"alive": p.alive_reward, "upright": p.upright_weight * math.exp(-tilt * tilt / p.upright_scale),
-            "hop": hop, "action_rate": -p.action_rate_weight * float(change @ change)}
+            "hop": hop, "action_rate": -p.action_rate_weight * float(change @ change),
+            "speed": -p.speed_weight * (speed_x - p.target_speed) ** 2}
 
 
 def frame(readings: Readings) -> np.ndarray:
@@ -102,9 +111,9 @@ class MonopedEndToEndEnv(MonopedBaseEnv):
         frame_high = np.full(FRAME_SIZE, np.inf, np.float32)
         frame_low = -frame_high
         frame_low[14], frame_high[14] = 0.0, 1.0
-        k = self.params.history
-        low = np.concatenate([np.tile(frame_low, k), -np.ones(ACTION_SIZE, np.float32)])
-        high = np.concatenate([np.tile(frame_high, k), np.ones(ACTION_SIZE, np.float32)])
+        k, yaw = self.params.history, YAW_SIZE if self.params.observe_yaw else 0
+        low = np.concatenate([np.tile(frame_low, k), -np.ones(yaw + ACTION_SIZE, np.float32)])
+        high = np.concatenate([np.tile(frame_high, k), np.ones(yaw + ACTION_SIZE, np.float32)])
         return self.actions.space(), spaces.Box(low, high, dtype=np.float32)
 
     def _start_episode(self, readings: Readings) -> None:
@@ -123,7 +132,10 @@ class MonopedEndToEndEnv(MonopedBaseEnv):
         if readings.stamp != self.frame_stamp:  # a step's new readings (a step always advances sim time)
             self.frames = [frame(readings), *self.frames[:-1]]
             self.frame_stamp = readings.stamp
-        return np.concatenate([*self.frames, self.action]).astype(np.float32)
+        if not self.params.observe_yaw:
+            return np.concatenate([*self.frames, self.action]).astype(np.float32)
+        yaw = base_rpy(readings)[2]
+        return np.concatenate([*self.frames, (math.cos(yaw), math.sin(yaw)), self.action]).astype(np.float32)
 
     def _reward_and_termination(self, observation: np.ndarray, readings: Readings) -> StepOutcome:
         p = self.params
@@ -141,4 +153,5 @@ class MonopedEndToEndEnv(MonopedBaseEnv):
                                 **self.hop_tracker.summary()}
         if fell:
             return {"fall": p.done_reward}, True, info
-        return reward_terms(p, tilt_angle(roll, pitch), flight_s, self.action, self.last_action), False, info
+        speed_x = readings.odometry(ODOMETRY_SENSOR).linear_velocity[0]
+        return reward_terms(p, tilt_angle(roll, pitch), flight_s, self.action, self.last_action, speed_x), False, info

@@ -2,7 +2,8 @@
 
 Every step, whoever acts (the teacher itself, or the student), the controller reads the env's latest readings
 and updates its phase machine, so that its label for a state is what it would command there after having lived
-through the same trajectory, at the student's control period. Its action is the label the student learns.
+through the same trajectory, at the student's control period, with the gains for that period (FIVE_MS_GAIN_CHANGES),
+commanded the task's target_speed. Its action is the label the student learns.
 """
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..controller.policy import ControllerPolicy
+from ..controller.policy import FIVE_MS_GAIN_CHANGES, ControllerPolicy
 
 
 class Teacher:
@@ -18,7 +19,7 @@ class Teacher:
     per step, before the step (the controller's phase machine follows the trajectory)."""
 
     def __init__(self, env: Any):
-        self.controller = ControllerPolicy(env)
+        self.controller = ControllerPolicy(env, speed=env.unwrapped.params.target_speed, gain_changes=FIVE_MS_GAIN_CHANGES)
 
     def reset(self) -> None:
         self.controller.reset()
