@@ -5,7 +5,7 @@ import statistics
 from collections import defaultdict
 
 import workspace_tools.bench.table as bench
-from workspace_tools.bench.rllib import CPU_PARTS, RLLIB_ENVS, rllib_summary
+from workspace_tools.bench.rllib import CPU_PARTS, RLLIB_ENVS, rllib_summary, sync_bound
 
 
 def samples() -> dict:
@@ -22,6 +22,7 @@ def samples() -> dict:
         s[f"rllib_sample_call_ray_ms_{n}"] += [2.0, 3.0, 2.5]
         for part, value in zip(CPU_PARTS, (4.94, 1.73, 0.26)):
             s[f"rllib_cpu_{part}_{n}"] += [value] * 3
+        s[f"rllib_bound_ratio_{n}"] += [sync_bound(4.94, 1.73, n) / b for b in sb3]
     s["rllib_batched_2"] += [100.0, 160.0, 90.0]
     s["rllib_batched_ratio_2"] += [b / sb3 for b, sb3 in zip(s["rllib_batched_2"], s["rllib_sb3_2"])]
     s["rllib_batched_sample_2"] += [210.0, 190.0, 200.0]
@@ -62,6 +63,8 @@ def test_the_rows_are_the_cubes_with_the_ratio_and_share_ranges(capsys):
     assert cells("RLlib PPO, N = 2 runners, train env steps/s") == ["60", ""]
     assert cells("SB3 PPO, N = 2 pipe workers, train env steps/s") == ["150", ""]
     assert cells("RLlib / SB3 PPO training, N = 2") == ["0.39", ""]
+    assert cells("RLlib / SB3 PPO training, N = 2, at most (sync_bound: runners' CPU / N + learner's)") == \
+        ["1.59", ""], "1000 / (4.94 / 2 + 1.73) env steps/s over SB3's 150 (the median repetition's)"
     assert cells("RLlib, N = 2, CPU ms/env step: runners' sample()") == ["4.94", ""]
     assert cells("RLlib, N = 2, CPU ms/env step: Ray's own") == ["0.26", ""]
     assert cells("RLlib, N = 2: Ray's CPU share") == ["0.040", ""]
@@ -81,3 +84,8 @@ def test_the_rows_are_the_cubes_with_the_ratio_and_share_ranges(capsys):
 def test_the_page_has_the_sections_rows():
     page = bench.markdown(report(), "./ws bench --sections rllib")
     assert "| RLlib, N = 1: Ray's CPU share | 0.040 |  |" in page
+
+
+def test_synchronous_ppo_is_bounded_by_the_runners_cpu_shared_over_them_plus_the_learners():
+    assert sync_bound(4.0, 1.0, 2) == 1000.0 / 3.0, "2 runners sample in parallel (2 ms), then the learner (1 ms)"
+    assert sync_bound(4.0, 1.0, 1) == 200.0

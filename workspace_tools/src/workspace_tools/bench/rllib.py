@@ -159,6 +159,13 @@ def worker_sb3(n: int, steps: int, running_step: float) -> dict:
             "sample_steps_per_s": RLLIB_FRAGMENT * n / sample_elapsed}
 
 
+def sync_bound(runner_ms: float, driver_ms: float, runners: int) -> float:
+    """The most env steps/s synchronous PPO can train at, from its CPU ms per env step: `runners` runners (at most
+    one per core) sample in parallel, then the learner on the driver updates while they wait, so each env step
+    takes at least runner_ms / runners + driver_ms of wall time (runner_ms: all runners' together)."""
+    return 1000.0 / (runner_ms / runners + driver_ms)
+
+
 def rllib_rep(run_worker: Callable[[Path, list], dict], folder: Path, rep: int, running_step: float, s: dict,
               log: Callable[[str], None]) -> None:
     """One repetition: RLlib and SB3 at N = 1 and 2 (and RLlib batched at RLLIB_BATCHED), interleaved, each in a
@@ -180,6 +187,9 @@ def rllib_rep(run_worker: Callable[[Path, list], dict], folder: Path, rep: int, 
             else:
                 s[f"rllib_sb3_cpu_{n}"].append(result["cpu_ms_per_step_total"])
         s[f"rllib_ratio_{n}"].append(s[f"rllib_rllib_{n}"][-1] / s[f"rllib_sb3_{n}"][-1])
+        s[f"rllib_bound_ratio_{n}"].append(sync_bound(s[f"rllib_cpu_runner_main_{n}"][-1],
+                                                      s[f"rllib_cpu_driver_main_{n}"][-1], n)
+                                           / s[f"rllib_sb3_{n}"][-1])
         log(f"rep {rep + 1} cube: RLlib PPO / SB3 PPO (pipe), N={n}: {s[f'rllib_rllib_{n}'][-1]:.0f}/"
             f"{s[f'rllib_sb3_{n}'][-1]:.0f} env steps/s = {s[f'rllib_ratio_{n}'][-1]:.2f}; Ray's CPU share "
             f"{s[f'rllib_ray_share_{n}'][-1]:.3f}")
@@ -197,6 +207,7 @@ def rllib_summary(s: dict, median: Callable[[list], float]) -> dict:
     return {"steps": RLLIB_STEPS, "fragment": RLLIB_FRAGMENT, "envs": list(RLLIB_ENVS),
             "steps_per_s": {"rllib": by_n("rllib_rllib"), "sb3_pipe": by_n("rllib_sb3")},
             "ratio_rllib_to_sb3": by_n("rllib_ratio"),
+            "bound_ratio_rllib_to_sb3": by_n("rllib_bound_ratio"),
             "rllib_cpu_ms_per_step": {part: by_n(f"rllib_cpu_{part}") for part in CPU_PARTS},
             "sb3_cpu_ms_per_step": by_n("rllib_sb3_cpu"),
             "ray_cpu_share": by_n("rllib_ray_share"),
@@ -229,6 +240,8 @@ def rllib_rows() -> list[tuple[str, Callable[[dict], Any], str, str, str]]:
             rows.append((f"{label}, train env steps/s", _figure("steps_per_s", kind, n), "{:.0f}", "", ""))
         rows.append((f"RLlib / SB3 PPO training, N = {n}", _figure("ratio_rllib_to_sb3", n), "{:.2f}", "RLlib / SB3",
                      f"rllib_ratio_{n}"))
+        rows.append((f"RLlib / SB3 PPO training, N = {n}, at most (sync_bound: runners' CPU / N + learner's)",
+                     _figure("bound_ratio_rllib_to_sb3", n), "{:.2f}", "", ""))
         for part, label in (("runner_main", "runners' sample()"), ("driver_main", "driver (learner)"),
                             ("ray", "Ray's own")):
             rows.append((f"RLlib, N = {n}, CPU ms/env step: {label}", _figure("rllib_cpu_ms_per_step", part, n),
