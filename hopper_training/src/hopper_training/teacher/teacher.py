@@ -19,7 +19,8 @@ class Teacher:
     per step, before the step (the controller's phase machine follows the trajectory)."""
 
     def __init__(self, env: Any):
-        self.controller = ControllerPolicy(env, speed=env.unwrapped.params.target_speed, gain_changes=FIVE_MS_GAIN_CHANGES)
+        self.controller = ControllerPolicy(env, speed=env.unwrapped.params.target_speed,
+                                           gain_changes=FIVE_MS_GAIN_CHANGES)
 
     def reset(self) -> None:
         self.controller.reset()
