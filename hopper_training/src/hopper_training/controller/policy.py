@@ -30,7 +30,7 @@ Changes, not a HopGains: nothing of the controller is built where it is only imp
 class ControllerPolicy:
     """observation -> action of an env in action_mode targets; reset() at each episode's start."""
 
-    def __init__(self, env: Any, speed: float = 0.0, gain_changes: Mapping[str, float] | None = None):
+    def __init__(self, env: Any, speed: float = 0.0, gain_changes: Mapping[str, Any] | None = None):
         self.env = env.unwrapped
         params = self.env.params
         if params.action_mode != "targets":
