@@ -140,7 +140,8 @@ class MonopedEndToEndEnv(MonopedBaseEnv):
     def _reward_and_termination(self, observation: np.ndarray, readings: Readings) -> StepOutcome:
         p = self.params
         roll, pitch, _ = base_rpy(readings)
-        position = readings.odometry(ODOMETRY_SENSOR).position
+        odometry = readings.odometry(ODOMETRY_SENSOR)
+        position = odometry.position
         touching = contact_force(readings) > 0.0
         self.hop_tracker.add(readings.stamp, position, touching)
         flight_s = readings.stamp - self.lift_off if touching and not self.in_contact else None
@@ -153,5 +154,6 @@ class MonopedEndToEndEnv(MonopedBaseEnv):
                                 **self.hop_tracker.summary()}
         if fell:
             return {"fall": p.done_reward}, True, info
-        speed_x = readings.odometry(ODOMETRY_SENSOR).linear_velocity[0]
-        return reward_terms(p, tilt_angle(roll, pitch), flight_s, self.action, self.last_action, speed_x), False, info
+        terms = reward_terms(p, tilt_angle(roll, pitch), flight_s, self.action, self.last_action,
+                             odometry.linear_velocity[0])
+        return terms, False, info
