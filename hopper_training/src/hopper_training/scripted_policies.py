@@ -7,7 +7,7 @@ import numpy as np
 
 from robot_rl import ConstantAction, ScriptedPolicy, TaskSpec, random_actions
 
-from .controller.policy import FIVE_MS_GAIN_CHANGES, ControllerPolicy
+from .controller.policy import ControllerPolicy, five_ms_controller
 from .controller.policy import controller_params as step_controller_params
 from .envs.end_to_end import END_TO_END
 from .envs.hop_cycle import controller_params as hop_cycle_controller_params
@@ -62,7 +62,7 @@ def controller(env: Any, speed: float) -> Any:
     if env.unwrapped.task in HOP_CYCLE_TASKS:
         return do_nothing(env, speed)
     if env.unwrapped.task is END_TO_END:  # the teacher's gains at its 5 ms period
-        return ControllerPolicy(env, speed, gain_changes=FIVE_MS_GAIN_CHANGES)
+        return five_ms_controller(env, speed)
     return ControllerPolicy(env, speed)
 
 

@@ -51,6 +51,11 @@ class ControllerPolicy:
         return np.clip(action, -1.0, 1.0).astype(np.float32)
 
 
+def five_ms_controller(env: Any, speed: float) -> ControllerPolicy:
+    """The controller at end_to_end's 5 ms period (FIVE_MS_GAIN_CHANGES): its teacher, and --policy controller there."""
+    return ControllerPolicy(env, speed, gain_changes=FIVE_MS_GAIN_CHANGES)
+
+
 def controller_params(task: TaskSpec[Any], params: Any) -> Any:
     """The task's params as the controller needs them: action_mode targets, running_step CONTROL_PERIOD."""
     return params.with_changes("--policy controller", action_mode="targets", running_step=CONTROL_PERIOD)

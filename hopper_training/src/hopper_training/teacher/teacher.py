@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..controller.policy import FIVE_MS_GAIN_CHANGES, ControllerPolicy
+from ..controller.policy import five_ms_controller
 
 
 class Teacher:
@@ -19,8 +19,7 @@ class Teacher:
     per step, before the step (the controller's phase machine follows the trajectory)."""
 
     def __init__(self, env: Any):
-        self.controller = ControllerPolicy(env, speed=env.unwrapped.params.target_speed,
-                                           gain_changes=FIVE_MS_GAIN_CHANGES)
+        self.controller = five_ms_controller(env, env.unwrapped.params.target_speed)
 
     def reset(self) -> None:
         self.controller.reset()
