@@ -51,11 +51,11 @@ def test_the_agent_refuses_tasks_without_the_teachers_actions():
         params.check_action_space(gymnasium.spaces.Discrete(7), "agent bc_dagger on Monoped-v0")
 
 
-def tiny_run(tmp_path, env):
+def tiny_run(tmp_path, env, **changes):
     params = END_TO_END.default_params()
     run = RunDirectory.create(tmp_path, AGENT.results_name(END_TO_END), params.to_mapping(), END_TO_END.metric_names,
                               run_name="tiny", checkpoint_name=AGENT.checkpoint_name)
-    agent_params = AGENT.load_params().with_changes("test", **TINY)
+    agent_params = AGENT.load_params().with_changes("test", **{**TINY, **changes})
     lines = []
     trainer = AGENT.make_trainer(env, END_TO_END, params, run, TrainingHooks(log=lines.append),
                                  agent_params=agent_params)
@@ -86,6 +86,23 @@ def test_a_tiny_run_writes_every_file_and_its_student_plays_without_the_controll
     trained = TrainedRun(run.path, hopper_training.TASKS)
     report = evaluate(trained, episodes=1, horizon_s=0.2, backend="direct", seed=1000)
     assert report["task"] == "MonopedEndToEnd-v0" and report["greedy"]["mean_time_upright_s"] > 0.0
+
+
+def test_the_refit_is_a_new_student_trained_on_the_whole_aggregate_after_the_last_round(tmp_path, env):
+    plain, _, _ = tiny_run(tmp_path / "plain", env)
+    run, summary, lines = tiny_run(tmp_path / "refit", env, refit_epochs=3)
+    assert [r["stage"] for r in summary["rounds"]] == ["bc", "dagger 0", "refit"]
+    refit = summary["rounds"][-1]
+    assert (refit["episodes"], refit["collect_upright"], refit["samples"], refit["epochs"]) == (0, None, 60, 3)
+    assert summary["completed"] and summary["episodes"] == 3  # it collects nothing
+    def collected(r):
+        return [(e.steps, e.return_, e.epsilon) for e in r.read_episodes()]
+    assert collected(run) == collected(plain)  # the stages before it are the run without it
+    assert (run.path / WEIGHTS_FILE).read_bytes() != (plain.path / WEIGHTS_FILE).read_bytes()
+    assert any(line.startswith("refit: 60 samples") for line in lines), lines
+    assert any("stage refit: a new student, 60 samples" in line for line in lines), lines  # the end block
+    checkpoint = json.loads((run.path / DEEP_CHECKPOINT).read_text())
+    assert checkpoint["stages_done"] == 3 and checkpoint["agent_params"]["refit_epochs"] == 3
 
 
 def test_weights_that_are_not_the_checkpoints_are_refused_in_one_line(tmp_path, env):

@@ -17,7 +17,7 @@ TINY = dict(bc_episodes=2, bc_epochs=1, dagger_rounds=2, dagger_episodes=2, dagg
             batch_size=16)
 
 
-def train(root, env, name, stop_at=None, resume=False):
+def train(root, env, name, stop_at=None, resume=False, changes=TINY):
     """A tiny run `name` under root; stop_at: the stop is asked for once that many episodes are done."""
     params = END_TO_END.default_params()
     if resume:
@@ -31,7 +31,7 @@ def train(root, env, name, stop_at=None, resume=False):
     def should_stop():
         return stop_at is not None and trainer is not None and trainer.state.episode >= stop_at
     trainer = AGENT.make_trainer(env, END_TO_END, params, run, TrainingHooks(log=lines.append, should_stop=should_stop),
-                                 resume=resume, agent_params=AGENT.load_params().with_changes("test", **TINY))
+                                 resume=resume, agent_params=AGENT.load_params().with_changes("test", **changes))
     return run, trainer.train(), lines
 
 
@@ -59,6 +59,19 @@ def test_a_run_stopped_in_a_round_resumes_from_the_last_finished_stage_and_ends_
     assert rows(run) == rows(whole)  # same seeds, same RNG states: the uninterrupted run's episodes
     assert (run.path / "student.npz").read_bytes() == (whole.path / "student.npz").read_bytes()
     assert [r["samples"] for r in summary["rounds"]] == [r["samples"] for r in whole_summary["rounds"]] == [40, 80, 120]
+
+
+def test_a_run_stopped_before_its_refit_resumes_and_ends_as_the_uninterrupted_one(tmp_path, env):
+    changes = {**TINY, "refit_epochs": 2}
+    whole, whole_summary, _ = train(tmp_path, env, "whole", changes=changes)
+    assert [r["stage"] for r in whole_summary["rounds"]] == ["bc", "dagger 0", "dagger 1", "refit"]
+    run, summary, _ = train(tmp_path, env, "stopped", stop_at=5, changes=changes)  # in round 1
+    assert not summary["completed"]
+    run, summary, lines = train(tmp_path, env, "stopped", resume=True, changes=changes)
+    assert any(line.startswith(f"Resuming {run.path} after stage 2 of 4 (episode 4)") for line in lines), lines
+    assert summary["completed"] and [r["stage"] for r in summary["rounds"]] == ["bc", "dagger 0", "dagger 1", "refit"]
+    assert rows(run) == rows(whole)
+    assert (run.path / "student.npz").read_bytes() == (whole.path / "student.npz").read_bytes()
 
 
 def test_a_resume_whose_data_is_not_the_checkpoints_is_refused_and_writes_nothing(tmp_path, env):

@@ -28,6 +28,13 @@ class BcDaggerParams(Params):
     beta_start: float = param(low=0.0, high=1.0, doc="round 0's chance per step that the teacher's action is taken")
     beta_decay: float = param(low=0.0, high=1.0, doc="beta of round r: beta_start x beta_decay^r")
     horizon_s: float = param(low=0.0, low_open=True, high=1e6, doc="sim seconds per collected episode at most")
+    refit_epochs: int = param(low=0, high=MAX_COUNT, default=0,
+                              doc="after the last round, a new student trained from its first weights on the whole "
+                                  "aggregate for this many epochs at learning_rate (0: the last round's student)")
+
+    def stages(self) -> int:
+        """The run's stages: behaviour cloning, the DAgger rounds, and the refit when refit_epochs > 0."""
+        return 1 + self.dagger_rounds + (1 if self.refit_epochs else 0)
 
     def episodes(self) -> int:
         """The episodes a run collects: behaviour cloning's, then every DAgger round's (the task's nepisodes is not

@@ -6,12 +6,16 @@
 2. DAgger rounds: the student acts, except that with probability beta (beta_start x beta_decay^round) a step
    takes the teacher's action; the teacher, shadow-run on the visited states (teacher.py), labels every one; the
    new samples join the aggregate and the student trains `dagger_epochs` more epochs on it.
+3. The refit (when `refit_epochs` > 0): a new student, from the same first weights as the run's, trains
+   `refit_epochs` epochs at `learning_rate` on the whole aggregate and is the run's student. A student that went
+   through every round, fine-tuned on data that grew round by round, imitates worse than one fitted once on all of it
+   (docs/guide/end_to_end.md, "Pushes in training").
 Every collected episode is a row of episodes.csv (its epsilon column is the chance the teacher acted: 1 for a
 behaviour cloning episode, beta for a round's). Episode i of the run resets with seed 10000 x (seed + 1) + i.
 The run's checkpoint is agent.json (the counters, the rounds' figures, the sha256 of the weights and the RNGs'
 states) beside student.npz and student.json (student.py) and the aggregate data, dagger_data.npz (observations
 and labels, numpy arrays read with allow_pickle=False), all as they were at the end of the last finished stage
-(BC, or a DAgger round): each stage's end writes the data, then the checkpoint, each file whole. resume:=true
+(BC, a DAgger round, the refit): each stage's end writes the data, then the checkpoint, each file whole. resume:=true
 goes on from there: the episodes of a stage under way at the stop are dropped from episodes.csv and collected
 anew (with the same seeds and RNG states: a resumed run is the uninterrupted one). Needs torch
 (requirements-deep.txt); trains on one env (envs:=1), over ROS or direct.
@@ -184,29 +188,33 @@ class BcDaggerTrainer:
             raise ValueError("agent bc_dagger trains on one env whose readings its teacher reads: envs:=1")
         agent_params.check_action_space(env.action_space, f"agent {agent.name} on {task.env_id}")
         torch.set_num_threads(1)
-        torch.manual_seed(params.seed)
         self.env, self.task, self.params, self.agent, self.p, self.run = env, task, params, agent, agent_params, run
         self.agent_config = None if agent_config is None else str(agent_config)
         self.log, self.should_stop = hooks.log, hooks.should_stop
         run.checkpoint_name = agent.checkpoint_name
-        size = int(np.prod(env.observation_space.shape))
-        self.net = StudentNet([size, *[agent_params.hidden_units] * agent_params.hidden_layers, 3])
+        self.net = self._first_net()
         self.generator = torch.Generator().manual_seed(params.seed)
         self.rng = np.random.default_rng(params.seed)
         self.teacher = Teacher(env)
         self.max_steps = max(1, round(agent_params.horizon_s / env.unwrapped.running_step))
         self.rounds: list[dict[str, Any]] = []
         self.beta = 1.0
-        self.observations = np.zeros((0, size), np.float32)
+        self.observations = np.zeros((0, int(np.prod(env.observation_space.shape))), np.float32)
         self.labels = np.zeros((0, 3), np.float32)
         self.state = TrainingState()
         self.saved = self._snapshot(None)  # what the checkpoint holds: the last finished stage's end (none yet)
         self.resuming = ""
         if resume:
             self.state = run.prepare_resume(self._restore)
-            self.resuming = (f"Resuming {run.path} after stage {len(self.rounds)} of {1 + agent_params.dagger_rounds} "
+            self.resuming = (f"Resuming {run.path} after stage {len(self.rounds)} of {agent_params.stages()} "
                              f"(episode {self.state.episode}); a stage under way at the stop is collected anew")
         self.ledger = RunLedger(run, task, agent_params.episodes(), self.state, self, hooks)
+
+    def _first_net(self) -> StudentNet:
+        """The student as the run begins it: its weights drawn from the training seed alone."""
+        torch.manual_seed(self.params.seed)
+        size = int(np.prod(self.env.observation_space.shape))
+        return StudentNet([size, *[self.p.hidden_units] * self.p.hidden_layers, 3])
 
     # -- the Learner's side (RunLedger) --
     def save_checkpoint(self) -> None:
@@ -235,7 +243,7 @@ class BcDaggerTrainer:
         self.p.require_saved(checkpoint["agent_params"])
         stages, rounds = checkpoint["stages_done"], checkpoint["rounds"]
         if not (isinstance(stages, int) and isinstance(rounds, list) and len(rounds) == stages
-                and 0 <= stages <= 1 + self.p.dagger_rounds):
+                and 0 <= stages <= self.p.stages()):
             raise ValueError(f"stages_done {stages!r} does not fit its {len(rounds)} rounds")
         if stages:
             data = checkpoint["data"]
@@ -262,8 +270,14 @@ class BcDaggerTrainer:
                 "rounds": self.rounds}
 
     def closing_lines(self, summary: dict[str, Any], last: Sequence[EpisodeRecord]) -> list[str]:
-        return [f"stage {r['stage']}: teacher share {r['beta']:.3f}, collected upright {r['collect_upright']:.2f}, "
-                f"{r['samples']} samples, training error {r['train_mse']:.5f}" for r in self.rounds]
+        return [f"stage {r['stage']}: {self._collected(r)}{r['samples']} samples, training error {r['train_mse']:.5f}"
+                for r in self.rounds]
+
+    @staticmethod
+    def _collected(stage: dict[str, Any]) -> str:
+        if not stage["episodes"]:
+            return "a new student, "
+        return f"teacher share {stage['beta']:.3f}, collected upright {stage['collect_upright']:.2f}, "
 
     # -- training --
     def _collect(self, episodes: int, student: Actor | None, beta: float, noise: Callable[[int], float]
@@ -284,16 +298,19 @@ class BcDaggerTrainer:
     def _train_stage(self, stage: str, xs: list[np.ndarray], ys: list[np.ndarray], epochs: int,
                      learning_rate: float, collected: list[Episode]) -> None:
         """Join the stage's samples to the aggregate, train on it, then save the stage: the data, then the
-        checkpoint (a resume goes on from here)."""
+        checkpoint (a resume goes on from here). No samples: the refit, a new student on the aggregate."""
         self.observations = np.concatenate([self.observations, *xs])
         self.labels = np.concatenate([self.labels, *ys])
         observations, labels = self.observations, self.labels
-        if not self.rounds:
+        if not self.rounds or not collected:
+            if self.rounds:
+                self.net = self._first_net()
             self.net.set_normaliser(observations)
         started = time.monotonic()
         mse = fit(self.net, observations, labels, epochs, learning_rate, self.p.batch_size, self.generator)
-        self.rounds.append({"stage": stage, "beta": self.beta, "episodes": len(collected),
-                            "collect_upright": float(np.mean([not e.terminated for e in collected])),
+        self.rounds.append({"stage": stage, "beta": self.beta if collected else 0.0, "episodes": len(collected),
+                            "collect_upright": float(np.mean([not e.terminated for e in collected])) if collected
+                            else None,
                             "samples": len(observations), "epochs": epochs, "train_mse": mse,
                             "train_wall_s": time.monotonic() - started})
         self.log(f"{stage}: {len(observations)} samples, training error {mse:.5f}")
@@ -321,6 +338,8 @@ class BcDaggerTrainer:
                     xs, ys, collected = self._collect(p.dagger_episodes, student, self.beta, lambda i: 0.0)
                     self._train_stage(f"dagger {round_}", xs, ys, p.dagger_epochs, p.dagger_learning_rate,
                                       collected)
+                if len(self.rounds) < p.stages():
+                    self._train_stage("refit", [], [], p.refit_epochs, p.learning_rate, [])
         except StopRequested:  # saved_on_stop saved the checkpoint and an "interrupted" summary
             return self.ledger.finish(stopped="interrupted")
         return self.ledger.close(done=True)
