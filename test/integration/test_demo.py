@@ -61,7 +61,7 @@ def test_the_refusing_hook_really_refuses_the_controller(tmp_path):
                             cwd=tmp_path, capture_output=True, text=True, timeout=300,
                             env=refusing_controller(tmp_path / "refused.log"))
     assert result.returncode != 0
-    assert "ControllerRefused: hopper_training.controller.policy.ControllerPolicy.__init__ was called" \
+    assert "ControllerRefused: hopper_training.controller.policy.five_ms_controller was called" \
         in result.stderr, result.stderr[-2000:]
 
 
