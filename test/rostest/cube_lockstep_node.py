@@ -1,6 +1,8 @@
 #!/usr/bin/env python3
 """rostest node: the lockstep step service, Gazebo's resets, and the command ordering guarantee."""
 import math
+import threading
+import time
 import unittest
 
 import rospy
@@ -8,6 +10,7 @@ import rostest
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
+from tf2_msgs.msg import TFMessage
 
 from pybullet_sim.ros import messages
 from pybullet_sim.ros.client import CommandPublisher, SensorSubscriber, SimConnection, SimConnectionError
@@ -131,6 +134,46 @@ class CubeLockstepTest(unittest.TestCase):
         self.assertEqual(joints.velocity[0], 0.0)
         next_stamp, _, _ = self.step(1)
         self.assertEqual(next_stamp, stamp + rospy.Duration(0, 1_000_000))
+
+    def test_clock_keeps_up_with_lockstep_while_tf_is_listened_to(self):
+        """robot_state_publisher skips a joint_states stamp within 1/publish_frequency of the older of its last
+        publication and /clock: with /clock throttled to 100 per wall second and lockstep far faster than real
+        time, it sent a reset's transforms again at the stamp it had sent (reset_world keeps time), and rviz
+        warned TF_REPEATED_DATA (test_display.py). While /tf has subscribers, /clock never lags sim time by 10 ms."""
+        clocks, frames = [], set()
+        arrived = threading.Condition()
+
+        def on_clock(msg):
+            with arrived:
+                clocks.append(msg.clock)
+                arrived.notify_all()
+
+        def on_tf(msg):
+            with arrived:
+                frames.update(transform.child_frame_id for transform in msg.transforms)
+
+        tf_subscriber = rospy.Subscriber("/tf", TFMessage, on_tf, queue_size=None, tcp_nodelay=True)
+        clock_subscriber = rospy.Subscriber("/clock", Clock, on_clock, queue_size=None, tcp_nodelay=True)
+        try:
+            deadline = time.monotonic() + TIMEOUT
+            while "cube_body" not in frames:  # the sim sends it once it sees /tf's subscriber: this one
+                self.assertLess(time.monotonic(), deadline, "no /tf of cube_body after lockstep steps: the sim "
+                                "node should broadcast the odometry's frame while /tf has a subscriber")
+                self.step(1)
+            with arrived:
+                del clocks[:]
+            for _ in range(20):
+                for _ in range(10):
+                    stamp = self.sim.step(5, [])
+                self.sim.reset_world()
+            with arrived:
+                self.assertTrue(arrived.wait_for(lambda: clocks and clocks[-1] >= stamp, TIMEOUT),
+                                f"/clock did not reach the last step's stamp {stamp.to_sec()} s")
+                gaps = [(later - earlier).to_sec() for earlier, later in zip(clocks, clocks[1:])]
+        finally:
+            tf_subscriber.unregister()
+            clock_subscriber.unregister()
+        self.assertLessEqual(max(gaps), 0.010, f"/clock lagged sim time by {max(gaps):.3f} s")
 
     def roll_the_cube(self):
         """Let the cube land, then spin the wheel up: the reaction rolls the cube along y."""

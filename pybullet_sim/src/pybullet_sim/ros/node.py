@@ -20,9 +20,9 @@ success false (ok false) and change nothing.
 
 Private params: ~time_step (0.001 s), ~real_time_factor (1.0), ~paused (false), ~gui (false), ~seed (0),
 ~command_timeout (2.0 s: how long ~step waits for the commands its caller announced),
-~pub_clock_frequency (100 Hz of wall time at most for /clock, gazebo_ros's default), plus the robot's
-controllers and sensors (see moving_cube_description/config/moving_cube_sim.yaml). The URDF comes from
-`robot_description`.
+~pub_clock_frequency (100 Hz of wall time at most for /clock, gazebo_ros's default, but see TF_CLOCK_LAG_NS),
+plus the robot's controllers and sensors (see moving_cube_description/config/moving_cube_sim.yaml). The URDF
+comes from `robot_description`.
 """
 from __future__ import annotations
 
@@ -66,6 +66,11 @@ from .messages import SENSOR_MESSAGES, image_msg, joint_state_msg, transform_msg
 from .shutdown import shutdown_on_signals, shutting_down
 
 STEP_BATCH = 10  # physics steps between two looks at the clock during a lockstep call
+# While /tf has subscribers, /clock goes out at least every this many ns of sim time, however fast the sim runs:
+# robot_state_publisher skips a joint_states stamp within its publish interval (1/publish_frequency, 33 ms in
+# sim.launch) of the older of its last publication and /clock, so with a lagging /clock it sends a reset's
+# transforms again at the stamp it already sent (reset_world keeps time), and rviz warns TF_REPEATED_DATA.
+TF_CLOCK_LAG_NS = 10_000_000
 STEP_SLICE = 0.02  # s of wall time a lockstep call holds the World before it lets other services in
 SHUTTING_DOWN = "the sim node is shutting down"
 
@@ -133,6 +138,7 @@ class SimNode:
         # and tf's listeners (rviz) warn TF_REPEATED_DATA on a second transform at one stamp; it is not resent.
         self._tf_stamps: dict[str, rospy.Time] = {}
         self._last_clock_wall = -math.inf
+        self._last_clock_ns = 0
         self._pace_origin = None  # (wall, sim) at which the free-running loop's pacing restarted
         self._make_schedules()
 
@@ -236,11 +242,14 @@ class SimNode:
             self._tf.sendTransform(transform_msg(sensor.frame_id, sensor.link, position, orientation, stamp))
         return reading, msg
 
-    def _publish_clock(self, stamp, force: bool = False):
-        """/clock at most ~pub_clock_frequency times per wall second, as gazebo_ros throttles it."""
+    def _publish_clock(self, stamp: rospy.Time, force: bool = False):
+        """/clock at most ~pub_clock_frequency times per wall second, as gazebo_ros throttles it, except that
+        while /tf has subscribers it never lags sim time by TF_CLOCK_LAG_NS or more."""
         now = time.monotonic()
-        if force or now - self._last_clock_wall >= self.pub_clock_period:
-            self._last_clock_wall = now
+        nanoseconds = stamp.to_nsec()
+        if (force or now - self._last_clock_wall >= self.pub_clock_period
+                or (nanoseconds - self._last_clock_ns >= TF_CLOCK_LAG_NS and self._tf.pub_tf.get_num_connections())):
+            self._last_clock_wall, self._last_clock_ns = now, nanoseconds
             self._clock_pub.publish(Clock(clock=stamp))
 
     def _publish_all(self, stamp: rospy.Time, force_clock: bool = False,
