@@ -125,8 +125,10 @@ def test_a_shipped_bc_dagger_run_is_its_weights_as_trained_and_plays_as_the_run(
     assert sorted(names) == sorted(p.name for p in shipped.iterdir()) == sorted(
         ["params.yaml", "episodes.csv", "learning_curve.png", "summary.json", DEEP_CHECKPOINT, "student.npz",
          "student.json"])
-    for name in ("student.npz", "student.json", DEEP_CHECKPOINT):
+    for name in ("student.npz", "student.json"):
         assert (shipped / name).read_bytes() == (run.path / name).read_bytes(), name
+    trained, kept = (json.loads((folder / DEEP_CHECKPOINT).read_text()) for folder in (run.path, shipped))
+    assert kept == {key: value for key, value in trained.items() if key not in ("data", "rng", "torch_generator")}
     observation, _ = env.reset(seed=3)
     actions = [TrainedRun(path, hopper_training.TASKS).policy(env, 0)(observation) for path in (run.path, shipped)]
     assert np.array_equal(*actions)

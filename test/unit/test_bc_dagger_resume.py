@@ -93,3 +93,11 @@ def test_a_resume_with_other_agent_params_is_refused_in_one_line(tmp_path, env):
                                                                        "stopped", AGENT.checkpoint_name),
                            TrainingHooks(), resume=True,
                            agent_params=AGENT.load_params().with_changes("test", **{**TINY, "dagger_rounds": 3}))
+
+
+def test_a_shipped_student_is_refused_a_resume_in_one_line(tmp_path, env):
+    from workspace_tools.ship import ship_run
+    run, _, _ = train(tmp_path, env, "whole")
+    ship_run(run.path, tmp_path / AGENT.results_name(END_TO_END) / "shipped")
+    with pytest.raises(ValueError, match=r"it has no data, rng, torch_generator: a shipped student .* does not resume"):
+        train(tmp_path, env, "shipped", resume=True)

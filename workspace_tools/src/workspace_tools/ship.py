@@ -9,10 +9,12 @@ SB3's `data` entry (JSON with cloudpickled objects, which evaluate.py never read
 out, and agent.json's model_sha256 is that of the new file. A bc_dagger student and an rllib_ppo module are weights
 only already (numpy arrays and JSON numbers): their files are copied as they are, and agent.json's weights_sha256
 still names them (checked again when the policy loads). evaluate.py --run, ./ws demo and resume read a shipped
-policy as the run. The run's `agent_config` (in agent.json and summary.json: the agent's params file, absolute on
-the machine that trained) ships as `<package>/<path in the package>` when the file lies in a ROS package (a folder
-with a package.xml: `robot_rl/config/bc_dagger.yaml`), else as null (agent.json's `agent_params` holds its values):
-a shipped policy names no path of the machine it was trained on.
+policy as the run, but for a bc_dagger student: its aggregate data stays with the run, and its agent.json ships
+without what only a resume reads (that file's record, the RNG states). The run's `agent_config` (in agent.json
+and summary.json: the agent's params file, absolute on the machine that trained) ships as `<package>/<path in the
+package>` when the file lies in a ROS package (a folder with a package.xml: `robot_rl/config/bc_dagger.yaml`),
+else as null (agent.json's `agent_params` holds its values): a shipped policy names no path of the machine it was
+trained on.
 
 Nothing ships that evaluate.py would not play: the run is loaded as evaluate.py loads it (a deep run's model.zip
 must be the one its agent.json recorded), the policy is written to a folder of its own beside the destination and
@@ -37,7 +39,7 @@ from io import BytesIO
 from pathlib import Path
 from typing import Any
 
-from hopper_training.teacher.student import ARCHITECTURE_FILE, CHECKPOINT_FORMAT, WEIGHTS_FILE
+from hopper_training.teacher.student import ARCHITECTURE_FILE, CHECKPOINT_FORMAT, RESUME_ENTRIES, WEIGHTS_FILE
 from robot_rl import RunFileError, TaskSpec, TrainedRun, make_env, write_bytes_atomic, write_json_atomic
 from workspace_tools.robots import ROBOTS
 
@@ -184,6 +186,9 @@ def _write(run: Path, folder: Path, deep: bool, weights: Sequence[str]) -> list[
     if MODEL not in weights:  # a bc_dagger student or rllib_ppo's module: weights only as trained
         for name in weights:
             shutil.copyfile(run / name, folder / name)
+        if checkpoint.get("format") == CHECKPOINT_FORMAT:  # without its data file: no resume state
+            write_json_atomic(folder / DEEP_CHECKPOINT, {key: value for key, value in checkpoint.items()
+                                                         if key not in RESUME_ENTRIES})
         return [*RESULTS, DEEP_CHECKPOINT, *weights]
     model = weights_only((run / MODEL).read_bytes(), run / MODEL)
     checkpoint["model_sha256"] = hashlib.sha256(model).hexdigest()

@@ -23,6 +23,9 @@ WEIGHTS_FILE = "student.npz"
 ARCHITECTURE_FILE = "student.json"
 ARCHITECTURE_FORMAT = "hopper_training.student/1"
 CHECKPOINT_FORMAT = "hopper_training.bc_dagger/1"  # agent.json of a bc_dagger run
+# agent.json's entries that only a resume reads (the aggregate data file's record, the RNG states): a shipped
+# student leaves them out, as it leaves out the data file
+RESUME_ENTRIES = ("data", "rng", "torch_generator")
 
 
 class NumpyStudent:

@@ -52,7 +52,7 @@ from robot_rl import (
 )
 
 from .params import BcDaggerParams
-from .student import CHECKPOINT_FORMAT, NumpyStudent
+from .student import CHECKPOINT_FORMAT, RESUME_ENTRIES, NumpyStudent
 from .teacher import Teacher
 
 Actor = Callable[[np.ndarray], np.ndarray]
@@ -240,6 +240,10 @@ class BcDaggerTrainer:
             raise ValueError(f"it is of agent {checkpoint['agent']!r}, this run trains {self.agent.name!r}")
         if "stages_done" not in checkpoint:
             raise ValueError("it is from before bc_dagger runs could resume (no stages_done): train a new run")
+        missing = [key for key in RESUME_ENTRIES if key not in checkpoint]
+        if missing:
+            raise ValueError(f"it has no {', '.join(missing)}: a shipped student (its weights only, ship_policy.py) "
+                             f"does not resume; train a new run")
         self.p.require_saved(checkpoint["agent_params"])
         stages, rounds = checkpoint["stages_done"], checkpoint["rounds"]
         if not (isinstance(stages, int) and isinstance(rounds, list) and len(rounds) == stages
@@ -256,7 +260,7 @@ class BcDaggerTrainer:
         self.rounds = [dict(r) for r in rounds]
         self.state = state
         self.saved = {key: checkpoint[key] for key in
-                      ("episode", "state", "rounds", "stages_done", "data", "rng", "torch_generator")}
+                      ("episode", "state", "rounds", "stages_done", *RESUME_ENTRIES)}
         return state
 
     def episode_label(self, epsilon: float) -> str:
