@@ -72,22 +72,26 @@ def shipped_agent_config(value: Any) -> str | None:
     return None
 
 
-def _copy_json(source: Path, target: Path) -> dict[str, Any]:
-    """Copy a run's JSON file, its `agent_config` as shipped (shipped_agent_config); the file's bytes as they are
-    when that changes nothing. Returns its contents (agent_config as shipped)."""
+def _copy_json(source: Path, target: Path, leave_out: Sequence[str] = ()) -> dict[str, Any]:
+    """Copy a run's JSON file without the entries `leave_out` names, its `agent_config` as shipped
+    (shipped_agent_config); the file's bytes as they are when that changes nothing. Returns its contents as
+    written."""
     text = source.read_text(encoding="utf-8")
     try:
         data = json.loads(text)
     except ValueError as error:
         raise ValueError(f"{source}: not JSON ({error})") from None
-    if isinstance(data, dict) and "agent_config" in data:
-        shipped = shipped_agent_config(data["agent_config"])
-        if shipped != data["agent_config"]:
-            data["agent_config"] = shipped
-            write_json_atomic(target, data)
-            return data
-    shutil.copyfile(source, target)
-    return data if isinstance(data, dict) else {}
+    if not isinstance(data, dict):
+        shutil.copyfile(source, target)
+        return {}
+    shipped = {key: value for key, value in data.items() if key not in leave_out}
+    if "agent_config" in shipped:
+        shipped["agent_config"] = shipped_agent_config(shipped["agent_config"])
+    if shipped == data:
+        shutil.copyfile(source, target)
+    else:
+        write_json_atomic(target, shipped)
+    return shipped
 
 
 def weights_only(model_zip: bytes, source: Path) -> bytes:
@@ -182,13 +186,11 @@ def _write(run: Path, folder: Path, deep: bool, weights: Sequence[str]) -> list[
     if not deep:
         shutil.copyfile(run / TABULAR_CHECKPOINT, folder / TABULAR_CHECKPOINT)
         return [*RESULTS, TABULAR_CHECKPOINT]
-    checkpoint = _copy_json(run / DEEP_CHECKPOINT, folder / DEEP_CHECKPOINT)
+    student = WEIGHTS_FILE in weights  # a bc_dagger student ships without its data file: no resume state
+    checkpoint = _copy_json(run / DEEP_CHECKPOINT, folder / DEEP_CHECKPOINT, RESUME_ENTRIES if student else ())
     if MODEL not in weights:  # a bc_dagger student or rllib_ppo's module: weights only as trained
         for name in weights:
             shutil.copyfile(run / name, folder / name)
-        if checkpoint.get("format") == CHECKPOINT_FORMAT:  # without its data file: no resume state
-            write_json_atomic(folder / DEEP_CHECKPOINT, {key: value for key, value in checkpoint.items()
-                                                         if key not in RESUME_ENTRIES})
         return [*RESULTS, DEEP_CHECKPOINT, *weights]
     model = weights_only((run / MODEL).read_bytes(), run / MODEL)
     checkpoint["model_sha256"] = hashlib.sha256(model).hexdigest()
