@@ -78,3 +78,18 @@ def test_the_controller_node_keeps_the_monoped_hopping(tmp_path):
     lift_offs = [t for (t0, was), (t, now) in zip(report["contacts"], report["contacts"][1:]) if was and not now]
     assert len(lift_offs) >= 5, f"{len(lift_offs)} lift-offs in {SIM_SECONDS} s of sim time"
     assert max(heights) - min(heights) > 0.05, "the base moved up and down as it hopped"
+
+
+def test_the_node_asked_to_start_a_sim_that_is_not_there_ends_with_one_line(tmp_path):
+    """~unpause waits (bounded) for the sim's connections; without a sim it says which topics are unconnected."""
+    master = RosMaster(tmp_path, cwd=REPO)
+    try:
+        result = master.run(["rosrun", "hopper_training", "hop_controller.py", "_unpause:=true",
+                             "_connect_timeout:=3.0"], timeout=START_TIMEOUT)
+    finally:
+        master.close()
+    assert result.returncode == 1, result.stdout[-2000:] + result.stderr[-2000:]
+    output = result.stdout + result.stderr
+    assert "hop_controller cannot start the sim: no connection on" in output, output[-2000:]
+    assert "/monoped/haa_joint_position_controller/command" in output and "/odom" in output, output[-2000:]
+    assert "is the monoped's sim running" in output, output[-2000:]

@@ -6,22 +6,28 @@ Subscribes to the monoped's sensors as the tutorial named them (/monoped/joint_s
 ~control_period of sim time after the last command, it runs the controller on the latest message of
 every sensor and publishes the three targets. A sim reset (time going back) restarts the controller.
 
-The sim must run freely (launched with paused:=false, or unpaused with /gazebo/unpause_physics): the
-controller needs a command every 1-5 ms of sim time (docs/research/2026-11-25-hop-stages.md), so a
-real_time_factor below 1 gives a Python node the wall time to keep up (hop_controller.launch: 0.25).
+The sim must run freely: the controller needs a command every 1-5 ms of sim time
+(docs/research/2026-11-25-hop-stages.md), so a real_time_factor below 1 gives a Python node the wall time to
+keep up (hop_controller.launch: 0.25). With ~unpause the node starts a paused sim itself, once the sim
+subscribes to its commands and publishes every sensor it reads: a sim that ran before then let the monoped
+land uncontrolled for the 50-150 ms the node took to connect, and from there it fell in 4 runs of 8 on a
+busy machine (0 of 8 with the connected start).
 
 Private params: ~speed_x, ~speed_y (m/s commanded along the body's heading and to its left, default 0),
-~control_period (s of sim time, default 0.001), ~apex_target (m, default 0: a fixed thrust).
+~control_period (s of sim time, default 0.001), ~apex_target (m, default 0: a fixed thrust), ~unpause
+(default false: call /gazebo/unpause_physics once connected), ~connect_timeout (wall s, default 60).
 """
 from __future__ import annotations
 
 import sys
 import threading
+import time
 
 import rospy
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64
+from std_srvs.srv import Empty
 
 from gazebo_msgs.msg import ContactsState
 from pybullet_sim.readings import ContactReading, ImuReading, OdometryReading
@@ -35,6 +41,7 @@ IMU = "/monoped/imu/data"
 ODOMETRY = "/odom"
 CONTACT = "/lowerleg_contactsensor_state"
 COMMANDS = tuple(f"/monoped/{joint}_joint_position_controller/command" for joint in ("haa", "hfe", "kfe"))
+UNPAUSE = "/gazebo/unpause_physics"
 
 
 class HopControllerNode:
@@ -49,10 +56,30 @@ class HopControllerNode:
         self._contact: ContactReading | None = None
         self._last_control = -float("inf")
         self._publishers = [rospy.Publisher(topic, Float64, queue_size=1, tcp_nodelay=True) for topic in COMMANDS]
-        rospy.Subscriber(IMU, Imu, self._on_imu, queue_size=1, tcp_nodelay=True)
-        rospy.Subscriber(ODOMETRY, Odometry, self._on_odometry, queue_size=1, tcp_nodelay=True)
-        rospy.Subscriber(CONTACT, ContactsState, self._on_contact, queue_size=1, tcp_nodelay=True)
-        rospy.Subscriber(JOINT_STATES, JointState, self._on_joint_states, queue_size=1, tcp_nodelay=True)
+        self._subscribers = [
+            rospy.Subscriber(IMU, Imu, self._on_imu, queue_size=1, tcp_nodelay=True),
+            rospy.Subscriber(ODOMETRY, Odometry, self._on_odometry, queue_size=1, tcp_nodelay=True),
+            rospy.Subscriber(CONTACT, ContactsState, self._on_contact, queue_size=1, tcp_nodelay=True),
+            rospy.Subscriber(JOINT_STATES, JointState, self._on_joint_states, queue_size=1, tcp_nodelay=True)]
+
+    def unconnected(self) -> list[str]:
+        """The command topics no one subscribes to and the sensor topics no one publishes to this node."""
+        return [topic.resolved_name for topic in (*self._publishers, *self._subscribers)
+                if topic.get_num_connections() == 0]
+
+    def unpause_when_connected(self, timeout: float) -> None:
+        """Waits (at most `timeout` wall s) until every topic of the node is connected, then unpauses the sim."""
+        deadline = time.monotonic() + timeout
+        while missing := self.unconnected():
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"no connection on {', '.join(missing)} within {timeout} s: is the monoped's "
+                                   "sim running (hop_controller.launch starts it unless sim:=false)?")
+            time.sleep(0.01)  # bounded poll of rospy's connection counts
+        try:
+            rospy.wait_for_service(UNPAUSE, max(deadline - time.monotonic(), 1.0))
+        except rospy.ROSException:
+            raise TimeoutError(f"{UNPAUSE} was not offered within {timeout} s: is the sim node up?") from None
+        rospy.ServiceProxy(UNPAUSE, Empty)()
 
     def _on_imu(self, msg: Imu) -> None:
         self._imu = imu_reading(msg)
@@ -86,11 +113,19 @@ def main() -> int:
     speed = (float(rospy.get_param("~speed_x", 0.0)), float(rospy.get_param("~speed_y", 0.0)))
     control_period = float(rospy.get_param("~control_period", 0.001))
     apex_target = float(rospy.get_param("~apex_target", 0.0))
+    connect_timeout = float(rospy.get_param("~connect_timeout", 60.0))
     if not control_period > 0.0:
         rospy.logfatal(f"hop_controller cannot start: ~control_period must be > 0 s, got {control_period}")
         return 1
-    HopControllerNode(HopController(HopGains(speed=speed, apex_target=apex_target)), control_period)
+    node = HopControllerNode(HopController(HopGains(speed=speed, apex_target=apex_target)), control_period)
     rospy.loginfo(f"hop_controller: speed {speed} m/s, a command every {control_period} s of sim time")
+    if rospy.get_param("~unpause", False):
+        try:
+            node.unpause_when_connected(connect_timeout)
+        except TimeoutError as error:
+            rospy.logfatal(f"hop_controller cannot start the sim: {error}")
+            return 1
+        rospy.loginfo(f"hop_controller: connected, {UNPAUSE} called")
     rospy.spin()
     return 0
 
