@@ -101,3 +101,13 @@ def test_a_shipped_student_is_refused_a_resume_in_one_line(tmp_path, env):
     ship_run(run.path, tmp_path / AGENT.results_name(END_TO_END) / "shipped")
     with pytest.raises(ValueError, match=r"it has no data, rng, torch_generator: a shipped student .* does not resume"):
         train(tmp_path, env, "shipped", resume=True)
+
+
+def test_a_resume_whose_teacher_had_other_gains_is_refused_in_one_line(tmp_path, env):
+    run, _, _ = train(tmp_path, env, "stopped", stop_at=3)
+    checkpoint = json.loads((run.path / "agent.json").read_text())
+    assert checkpoint["teacher_gains"]["placement_kv"] == 0.1  # the teacher at 5 ms (FIVE_MS_GAIN_CHANGES)
+    checkpoint["teacher_gains"]["placement_kv"] = 0.2
+    (run.path / "agent.json").write_text(json.dumps(checkpoint))
+    with pytest.raises(ValueError, match=r"teacher's gains differ from today's \(placement_kv 0.2 there, 0.1 here\)"):
+        train(tmp_path, env, "stopped", resume=True)

@@ -7,6 +7,8 @@ commanded the task's target_speed. Its action is the label the student learns.
 """
 from __future__ import annotations
 
+import dataclasses
+import json
 from typing import Any
 
 import numpy as np
@@ -20,6 +22,10 @@ class Teacher:
 
     def __init__(self, env: Any):
         self.controller = five_ms_controller(env, env.unwrapped.params.target_speed)
+
+    def gains(self) -> dict[str, Any]:
+        """The controller's HopGains as JSON holds them (a run's checkpoint records its teacher)."""
+        return json.loads(json.dumps(dataclasses.asdict(self.controller.controller.gains)))
 
     def reset(self) -> None:
         self.controller.reset()

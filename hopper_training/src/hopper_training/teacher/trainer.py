@@ -12,12 +12,13 @@
    (docs/guide/end_to_end.md, "Pushes in training").
 Every collected episode is a row of episodes.csv (its epsilon column is the chance the teacher acted: 1 for a
 behaviour cloning episode, beta for a round's). Episode i of the run resets with seed 10000 x (seed + 1) + i.
-The run's checkpoint is agent.json (the counters, the rounds' figures, the sha256 of the weights and the RNGs'
-states) beside student.npz and student.json (student.py) and the aggregate data, dagger_data.npz (observations
-and labels, numpy arrays read with allow_pickle=False), all as they were at the end of the last finished stage
-(BC, a DAgger round, the refit): each stage's end writes the data, then the checkpoint, each file whole. resume:=true
-goes on from there: the episodes of a stage under way at the stop are dropped from episodes.csv and collected
-anew (with the same seeds and RNG states: a resumed run is the uninterrupted one). Needs torch
+The run's checkpoint is agent.json (the counters, the rounds' figures, the teacher's gains, the sha256 of the
+weights and the RNGs' states) beside student.npz and student.json (student.py) and the aggregate data,
+dagger_data.npz (observations and labels, numpy arrays read with allow_pickle=False), all as they were at the end
+of the last finished stage (BC, a DAgger round, the refit): each stage's end writes the data, then the checkpoint,
+each file whole. resume:=true goes on from there, with the teacher it recorded (other gains are refused): the
+episodes of a stage under way at the stop are dropped from episodes.csv and collected anew (with the same seeds
+and RNG states: a resumed run is the uninterrupted one). Needs torch
 (requirements-deep.txt); trains on one env (envs:=1), over ROS or direct.
 """
 from __future__ import annotations
@@ -223,7 +224,7 @@ class BcDaggerTrainer:
         sha256 = self.net.numpy_student().save(self.run.path)
         self.run.checkpoint({"format": CHECKPOINT_FORMAT, "agent": self.agent.name, "task": self.task.env_id,
                              "agent_params": self.p.to_mapping(), "agent_config": self.agent_config,
-                             "weights_sha256": sha256, **self.saved})
+                             "teacher_gains": self.teacher.gains(), "weights_sha256": sha256, **self.saved})
 
     def _snapshot(self, data: dict[str, Any] | None) -> dict[str, Any]:
         """The checkpoint's counters, rounds and RNG states now (a stage's end), with its data file's record."""
@@ -245,6 +246,11 @@ class BcDaggerTrainer:
             raise ValueError(f"it has no {', '.join(missing)}: a shipped student (its weights only, ship_policy.py) "
                              f"does not resume; train a new run")
         self.p.require_saved(checkpoint["agent_params"])
+        today = self.teacher.gains()  # a run from before the gains were recorded resumes with today's teacher
+        changed = [f"{key} {there} there, {today.get(key)} here"
+                   for key, there in checkpoint.get("teacher_gains", {}).items() if there != today.get(key)]
+        if changed:
+            raise ValueError(f"its teacher's gains differ from today's ({', '.join(changed)}): train a new run")
         stages, rounds = checkpoint["stages_done"], checkpoint["rounds"]
         if not (isinstance(stages, int) and isinstance(rounds, list) and len(rounds) == stages
                 and 0 <= stages <= self.p.stages()):
