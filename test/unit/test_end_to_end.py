@@ -90,3 +90,12 @@ def test_a_fall_past_0_6_rad_ends_the_episode_with_the_fall_term_alone(env):
             break
     assert terminated and info["fell"]
     assert reward == PARAMS.done_reward and info["reward_fall"] == PARAMS.done_reward
+
+
+@pytest.mark.parametrize("variant, changes", [
+    ("end_to_end_push.yaml", {"push_speed": 0.3, "target_speed": 0.0}),
+    ("end_to_end_forward.yaml", {"push_speed": 0.0, "target_speed": 0.4, "observe_yaw": True}),
+    ("end_to_end_forward_push.yaml", {"push_speed": 0.3, "target_speed": 0.4, "observe_yaw": True})])
+def test_each_variant_config_loads_strictly_with_the_values_its_name_says(variant, changes):
+    params = END_TO_END.load_params(END_TO_END.config_path.parent / variant)
+    assert {key: getattr(params, key) for key in changes} == changes
