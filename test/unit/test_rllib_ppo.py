@@ -163,6 +163,40 @@ def test_the_numpy_policy_acts_as_rllib_s_module_greedily(tmp_path, action_space
             assert action_space.contains(action) and np.allclose(action, expected, atol=1e-5)
 
 
+@pytest.mark.parametrize("action_space", [gymnasium.spaces.Discrete(5),
+                                          gymnasium.spaces.Box(np.array([-2.0, 0.0], np.float32),
+                                                               np.array([2.0, 1.0], np.float32))],
+                         ids=["discrete", "box"])
+def test_the_runners_module_samples_its_own_actions_from_the_distribution_ppo_s_loss_uses(action_space):
+    import torch
+    from ray.rllib.core.columns import Columns
+
+    from robot_rl.agents.rllib.module import LeanPPOTorchRLModule
+    c = config(envs=1, action_space=action_space)
+    runner_side = c.get_rl_module_spec(inference_only=True).build()
+    assert isinstance(runner_side, LeanPPOTorchRLModule), "the config gives the runners the lean module"
+    learner_side = torch_module(action_space)  # RLlib's default PPO module, the same layers
+    learner_side.load_state_dict(runner_side.state_dict(), strict=False)
+    observations = torch.as_tensor(np.random.default_rng(0).uniform(-1.0, 1.0, (4, 6)).astype(np.float32))
+    torch.manual_seed(0)
+    out = runner_side.forward_exploration({Columns.OBS: observations})
+    inputs = out[Columns.ACTION_DIST_INPUTS]
+    assert torch.allclose(inputs, learner_side.forward_exploration({Columns.OBS: observations})
+                          [Columns.ACTION_DIST_INPUTS]), "the same forward pass as RLlib's module"
+    distribution = learner_side.get_train_action_dist_cls().from_logits(inputs)
+    assert torch.allclose(out[Columns.ACTION_LOGP], distribution.logp(out[Columns.ACTIONS]), atol=1e-5), \
+        "the log-probability PPO's loss divides by is the one its distribution gives"
+    draws = torch.stack([runner_side.forward_exploration({Columns.OBS: observations[:1]})[Columns.ACTIONS][0]
+                         for _ in range(4000)])
+    if isinstance(action_space, gymnasium.spaces.Discrete):
+        frequencies = torch.bincount(draws, minlength=action_space.n).float() / len(draws)
+        assert torch.allclose(frequencies, torch.softmax(inputs[0], -1), atol=0.03)
+    else:
+        mean, log_std = inputs[0].chunk(2)
+        assert torch.allclose(draws.mean(0), mean, atol=0.06) and torch.allclose(draws.std(0), log_std.exp(),
+                                                                                 rtol=0.06)
+
+
 def test_a_weights_file_that_is_not_the_recorded_one_is_refused(tmp_path):
     path = tmp_path / "rllib_module.npz"
     digest = save_weights(path, {"a": np.zeros(3)})

@@ -84,9 +84,13 @@ def ppo_config(p: RllibPpoParams, env_name: str, env_config: dict[str, Any], obs
                action_space: Any, envs: int, gamma: float, seed: int) -> Any:
     """RLlib's PPOConfig for these params: `envs` envs in envs / envs_per_runner remote env runners (one CPU each, a
     sync vector env of envs_per_runner envs) on env `env_name` (registered with tune.register_env), the learner on the
-    driver (num_learners=0), failed runners restarted."""
+    driver (num_learners=0), failed runners restarted; the module LeanPPOTorchRLModule (runners sample their own
+    actions)."""
     from ray.rllib.algorithms.ppo import PPOConfig
     from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
+    from ray.rllib.core.rl_module.rl_module import RLModuleSpec
+
+    from .module import LeanPPOTorchRLModule
     network = [p.hidden_units] * p.hidden_layers
     return (PPOConfig()
             .framework("torch")
@@ -102,7 +106,8 @@ def ppo_config(p: RllibPpoParams, env_name: str, env_config: dict[str, Any], obs
                       clip_param=p.clip_range, entropy_coeff=p.ent_coef, vf_loss_coeff=p.vf_coef,
                       grad_clip=p.max_grad_norm, grad_clip_by="global_norm", use_kl_loss=False,
                       vf_clip_param=float("inf"))
-            .rl_module(model_config=DefaultModelConfig(fcnet_hiddens=network, fcnet_activation="tanh",
+            .rl_module(rl_module_spec=RLModuleSpec(module_class=LeanPPOTorchRLModule),
+                       model_config=DefaultModelConfig(fcnet_hiddens=network, fcnet_activation="tanh",
                                                        head_fcnet_hiddens=[], vf_share_layers=False))
             .debugging(seed=seed, log_level="ERROR")
             .fault_tolerance(restart_failed_env_runners=True, max_num_env_runner_restarts=p.max_runner_restarts)
