@@ -6,7 +6,8 @@ actor's MLP and its head called directly (not through the encoder's dicts), and 
 drawn here with torch ops rather than by RLlib's GetActions connector through distribution objects (a Categorical
 for Discrete actions, a diagonal Gaussian of mean and log-std for a Box: the classes PPO's loss uses, and the same
 log-probability it computes). GetActions passes actions that are already there through. At a batch of one this
-cuts a runner's policy step from about 220 to 70 us (docs/research/2026-11-27-rllib-profile.md).
+cuts the policy's part of a runner's step from 180-240 to 130-170 us, and a runner's CPU per env step by 14-18 %
+(docs/research/2026-11-29-rllib-lean-module.md).
 """
 from __future__ import annotations
 
