@@ -209,3 +209,73 @@ def test_a_weights_file_that_is_not_the_recorded_one_is_refused(tmp_path):
         load_weights(path, digest, tmp_path / "agent.json")
     with pytest.raises(RunFileError, match="no actor of RLlib's PPO module"):
         NumpyPpoPolicy({"a": np.zeros(3)}, gymnasium.spaces.Discrete(2), "test")
+
+
+def gradients_with(rng, special=None):
+    """Gradient-like tensors of a few shapes; `special` puts nan or inf into the second one."""
+    import torch
+    tensors = [torch.as_tensor(rng.normal(0.0, scale, shape).astype(np.float32))
+               for scale, shape in ((3.0, (6, 4)), (0.5, (4,)), (2.0, (4, 2)))]
+    if special is not None:
+        tensors[1][2] = special
+    return tensors
+
+
+@pytest.mark.parametrize("special", [None, float("nan"), float("inf")], ids=["finite", "nan", "inf"])
+@pytest.mark.parametrize("grad_clip", [0.5, 1000.0], ids=["clipped", "unclipped"])
+def test_the_fused_clipping_gives_rllib_s_norm_and_gradients(special, grad_clip):
+    import torch
+    from ray.rllib.utils.torch_utils import clip_gradients
+
+    from robot_rl.agents.rllib.learner import clip_by_global_norm
+    ours, theirs = ({i: g for i, g in enumerate(gradients_with(np.random.default_rng(1), special))} for _ in range(2))
+    norm = clip_by_global_norm(ours, grad_clip=grad_clip, grad_clip_by="global_norm")
+    assert torch.allclose(norm, clip_gradients(theirs, grad_clip=grad_clip, grad_clip_by="global_norm"))
+    for i in theirs:
+        assert torch.allclose(ours[i], theirs[i], equal_nan=True, rtol=1e-5), f"gradient {i}"
+
+
+@pytest.mark.parametrize("special", [None, float("nan"), float("inf")], ids=["finite", "nan", "inf"])
+def test_the_learner_clips_and_applies_gradients_as_rllib_s_ppo_learner_does(special):
+    import torch
+    from ray.rllib.algorithms.ppo.torch.ppo_torch_learner import PPOTorchLearner
+
+    from robot_rl.agents.rllib.learner import LeanPPOTorchLearner
+    c = config(envs=1)
+    ours = c.build_learner()
+    assert type(ours) is LeanPPOTorchLearner, "the config gives the driver the lean learner"
+    theirs = c.copy(copy_frozen=False).learners(learner_class=PPOTorchLearner).build_learner()
+    module = next(iter(ours.module.keys()))
+    theirs.module[module].load_state_dict(ours.module[module].state_dict())
+    for learner in (ours, theirs):
+        rng = np.random.default_rng(2)
+        gradients = {}
+        for pid, parameter in learner._params.items():
+            parameter.grad = torch.as_tensor(rng.normal(0.0, 2.0, tuple(parameter.shape)).astype(np.float32))
+            gradients[pid] = parameter.grad
+        if special is not None:
+            next(iter(gradients.values())).view(-1)[3] = special
+        learner.apply_gradients(learner.postprocess_gradients(gradients))
+    for (name, a), b in zip(ours.module[module].named_parameters(), theirs.module[module].parameters()):
+        assert torch.isfinite(a).all() and torch.allclose(a, b, atol=1e-6), f"{name} after one Adam step"
+
+
+def test_the_module_runs_exploration_in_eval_mode_training_in_train_mode_and_refuses_dropout():
+    import torch
+    from ray.rllib.core.columns import Columns
+
+    from robot_rl.agents.rllib.module import LeanPPOTorchRLModule
+    spec = config(envs=1).get_rl_module_spec()
+    module = spec.build()
+    observations = torch.zeros((2, 6))
+    module.forward_exploration({Columns.OBS: observations})
+    assert not any(layer.training for layer in module.modules()), "exploration in eval mode, every layer"
+    module.forward_train({Columns.OBS: observations})
+    assert all(layer.training for layer in module.modules()), "training in train mode, every layer"
+
+    class WithDropout(LeanPPOTorchRLModule):
+        def setup(self):
+            self.noise = torch.nn.Dropout(0.1)
+            super().setup()
+    with pytest.raises(ValueError, match=r"cannot hold \['Dropout'\]"):
+        dataclasses.replace(spec, module_class=WithDropout).build()

@@ -40,7 +40,7 @@ from typing import Any
 from workspace_tools.bench.common import ROBOTS, bench_params, cpu_seconds, stat_fields
 
 RLLIB_ENVS = (1, 2)
-RLLIB_STEPS = 2048    # env steps of training per configuration (all envs together)
+RLLIB_STEPS = 8192    # env steps of training per configuration (all envs together): 16 updates at N = 2
 RLLIB_FRAGMENT = 256  # env steps per env per update: RLlib's rollout_fragment_length, SB3's n_steps
 RLLIB_BATCHED = (2,)  # N at which RLlib runs again with its N envs in one runner (envs_per_runner N)
 ROBOT = "cube"

@@ -8,6 +8,11 @@ for Discrete actions, a diagonal Gaussian of mean and log-std for a Box: the cla
 log-probability it computes). GetActions passes actions that are already there through. At a batch of one this
 cuts the policy's part of a runner's step from 180-240 to 130-170 us, and a runner's CPU per env step by 14-18 %
 (docs/research/2026-11-29-rllib-lean-module.md).
+
+RLlib's torch module also switches itself (every layer, recursively) to eval mode and back around every exploration
+call, and to train mode before every training minibatch. Its layers here (Linear and tanh; the module refuses dropout
+and batch norm) act the same in both modes, so this one switches only when the mode is not already the one asked
+for: exploration in eval mode, training in train mode.
 """
 from __future__ import annotations
 
@@ -18,6 +23,7 @@ import gymnasium
 import torch
 from ray.rllib.algorithms.ppo.torch.default_ppo_torch_rl_module import DefaultPPOTorchRLModule
 from ray.rllib.core.columns import Columns
+from ray.rllib.core.rl_module.rl_module import RLModule
 
 HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
 
@@ -38,9 +44,29 @@ def sample_diag_gaussian(inputs: torch.Tensor) -> tuple[torch.Tensor, torch.Tens
     return mean + log_std.exp() * noise, log_prob
 
 
+MODE_DEPENDENT = (torch.nn.modules.dropout._DropoutNd, torch.nn.modules.batchnorm._NormBase)
+
+
 class LeanPPOTorchRLModule(DefaultPPOTorchRLModule):
-    """DefaultPPOTorchRLModule with a leaner exploration forward pass (module docstring). Needs separate actor and
-    critic MLPs (vf_share_layers False, rllib_ppo's config)."""
+    """DefaultPPOTorchRLModule with a leaner exploration forward pass and mode switches (module docstring). Needs
+    separate actor and critic MLPs (vf_share_layers False, rllib_ppo's config)."""
+
+    def setup(self) -> None:
+        super().setup()
+        layers = [type(layer).__name__ for layer in self.modules() if isinstance(layer, MODE_DEPENDENT)]
+        if layers:
+            raise ValueError(f"LeanPPOTorchRLModule keeps its layers' mode between calls: it cannot hold {layers}, "
+                             f"which act differently in train and eval mode")
+
+    def forward_exploration(self, batch: dict[str, Any], **kwargs: Any) -> dict[str, Any]:
+        if self.training:
+            self.eval()
+        return self._forward_exploration(batch, **kwargs)
+
+    def forward_train(self, batch: dict[str, Any], **kwargs: Any) -> dict[str, Any]:
+        if not self.training:
+            self.train()
+        return RLModule.forward_train(self, batch, **kwargs)
 
     def _forward_exploration(self, batch: dict[str, Any], **kwargs: Any) -> dict[str, Any]:
         with torch.no_grad():

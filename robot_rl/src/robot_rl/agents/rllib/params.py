@@ -85,11 +85,12 @@ def ppo_config(p: RllibPpoParams, env_name: str, env_config: dict[str, Any], obs
     """RLlib's PPOConfig for these params: `envs` envs in envs / envs_per_runner remote env runners (one CPU each, a
     sync vector env of envs_per_runner envs) on env `env_name` (registered with tune.register_env), the learner on the
     driver (num_learners=0), failed runners restarted; the module LeanPPOTorchRLModule (runners sample their own
-    actions)."""
+    actions), the learner LeanPPOTorchLearner (gradients clipped and applied in fused calls)."""
     from ray.rllib.algorithms.ppo import PPOConfig
     from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
     from ray.rllib.core.rl_module.rl_module import RLModuleSpec
 
+    from .learner import LeanPPOTorchLearner
     from .module import LeanPPOTorchRLModule
     network = [p.hidden_units] * p.hidden_layers
     return (PPOConfig()
@@ -100,7 +101,7 @@ def ppo_config(p: RllibPpoParams, env_name: str, env_config: dict[str, Any], obs
                          num_cpus_per_env_runner=1, gym_env_vectorize_mode="sync",
                          rollout_fragment_length=p.rollout_fragment_length, batch_mode="truncate_episodes",
                          sample_timeout_s=p.sample_timeout_s)
-            .learners(num_learners=0, num_cpus_per_learner=0)
+            .learners(num_learners=0, num_cpus_per_learner=0, learner_class=LeanPPOTorchLearner)
             .training(gamma=gamma, lr=p.learning_rate, train_batch_size_per_learner=p.train_batch_size(envs),
                       minibatch_size=p.batch_size, num_epochs=p.n_epochs, lambda_=p.gae_lambda,
                       clip_param=p.clip_range, entropy_coeff=p.ent_coef, vf_loss_coeff=p.vf_coef,
