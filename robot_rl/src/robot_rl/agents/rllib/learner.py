@@ -10,7 +10,7 @@ weights) those per-tensor calls are a visible part of an update (12 % and 7 % of
   then checks every tensor again before stepping; here one check of all of them (of their norms: finite only when
   every entry is), the same `nan_to_num` on all when it fails (a no-op on finite tensors), then the step.
 Where RLlib's other paths are configured (learning-rate schedulers, grad scalers, torch_skip_nan_gradients) or
-clipping is not by global norm, RLlib's own methods run. It takes 5-20 % off the driver's update
+clipping is not by global norm, RLlib's own methods run. It takes 2-20 % off the driver's update
 (docs/research/2026-11-29-rllib-lean-learner.md).
 """
 from __future__ import annotations
