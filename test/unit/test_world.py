@@ -419,6 +419,7 @@ def changing_calls(world):
             "set_gravity": lambda: world.set_gravity(world.gravity),
             "set_time_step": lambda: world.set_time_step(world.time_step),
             "set_solver": lambda: world.set_solver(world.solver),
+            "set_attitude_assist": lambda: world.set_attitude_assist(*world.attitude_assist),
             "set_model_state": lambda: world.set_model_state(world.model_state()),
             "set_joint_positions": lambda: world.set_joint_positions({world.joint_names[0]: 0.1}),
             "reset_world": world.reset_world, "reset_simulation": world.reset_simulation}
@@ -449,7 +450,7 @@ def test_every_change_notifies_the_remembered_starts_with_its_kind(world, monkey
     ("set_command", True), ("start_controller", True), ("stop_controller", True),  # commands are in the key
     ("reset_world", True), ("reset_simulation", True),
     ("step", False), ("set_model_state", False), ("set_joint_positions", False), ("set_gravity", False),
-    ("set_time_step", False), ("set_solver", False)])
+    ("set_time_step", False), ("set_solver", False), ("set_attitude_assist", False)])
 def test_a_change_after_a_reset_keeps_or_voids_the_start(world, name, replayed):
     for _ in range(3):
         start(world)

@@ -5,6 +5,7 @@ STEP_SERVICE = "/pybullet_sim/step"
 STEP_PACKED_SERVICE = "/pybullet_sim/step_packed"
 RESET_SERVICE = "/pybullet_sim/reset"
 RENDER_SERVICE = "/pybullet_sim/render"
+ATTITUDE_ASSIST_SERVICE = "/pybullet_sim/set_attitude_assist"
 PHYSICS_SERVICE = "/gazebo/get_physics_properties"
 GAZEBO_SERVICES = ("/gazebo/pause_physics", "/gazebo/unpause_physics", "/gazebo/reset_world",
                    "/gazebo/reset_simulation")

@@ -22,6 +22,9 @@ Semantics kept from Gazebo + ros_control:
 - Model and link states are the pose and twist of URDF link frames in the world frame.
 - The sim config's `base_constraint: vertical` (not Gazebo's) holds the base on a vertical slider: it keeps
   its spawn x, y and orientation and moves along world z only (set_model_state's pose is pulled back to it).
+- The attitude assist (not Gazebo's; set_attitude_assist, a training curriculum's help) pulls the base upright:
+  before every physics step a torque of stiffness x the sine of the base's tilt about the tilt's horizontal axis,
+  minus damping x the base's horizontal angular velocity (world frame). Off (0, 0) by default; resets keep it.
 
 Its sensor readers and model and link states are in pybullet_sim.measurements; replay_from_reset
 takes the first steps after a reset from memory (pybullet_sim.starts), bit for bit as stepping would.
@@ -51,10 +54,11 @@ from .transforms import cross, normalized, quaternion_multiply, rotate, transpos
 from .urdf import UrdfJoint, parse_urdf_joints
 from .validation import frame_state_problem
 
-__all__ = ["DEFAULT_GRAVITY", "MAX_REMEMBERED_STARTS", "SolverSettings", "World"]
+__all__ = ["DEFAULT_GRAVITY", "MAX_ASSIST_GAIN", "MAX_REMEMBERED_STARTS", "SolverSettings", "World"]
 
 DEFAULT_GRAVITY = (0.0, 0.0, -9.81)
 MIN_TIME_STEP = 1e-6  # s; sim time counts whole nanoseconds
+MAX_ASSIST_GAIN = 1e4  # N m/rad and N m s/rad: the attitude assist's bound (the monoped topples at ~6 N m/rad)
 
 # Bullet adds the velocity-product terms (gyroscopic torque w x Iw, Coriolis) explicitly once per step, so a
 # fast-spinning link gains energy: the error grows with w^2 * h (h: the PyBullet step). No energy is gained up to
@@ -127,6 +131,7 @@ class World(Measurements):
         self._substeps = 1
         self._gravity = DEFAULT_GRAVITY
         self._solver = SolverSettings()
+        self._assist = (0.0, 0.0)  # the attitude assist's stiffness (N m/rad) and damping (N m s/rad)
         self._rng = np.random.default_rng(seed)
         # In PyBullet's window a user can drag the robot during the steps: never replay there.
         self._starts: StartMemory[_StartEnd] = StartMemory(self._save_start_end, self._discard_start_end,
@@ -246,9 +251,12 @@ class World(Measurements):
             states = p.getJointStates(body, self._movable, physicsClientId=cid)
             efforts = [c.effort(states[s][0], states[s][1], dt) if c.running else 0.0
                        for c, s in zip(controllers, slots, strict=True)]
+            assist = self._assist_torque() if self._assist != (0.0, 0.0) else None
             for _ in range(self._substeps_for(states)):
                 if controllers:  # PyBullet applies a joint torque for one stepSimulation only
                     p.setJointMotorControlArray(body, indices, p.TORQUE_CONTROL, forces=efforts, physicsClientId=cid)
+                if assist is not None:  # an external torque too
+                    p.applyExternalTorque(body, -1, assist, p.WORLD_FRAME, physicsClientId=cid)
                 p.stepSimulation(physicsClientId=cid)
         self._advance_time(count)
         self._controller_efforts = efforts
@@ -371,6 +379,31 @@ class World(Measurements):
                                     solverResidualThreshold=solver.residual_threshold, erp=solver.erp,
                                     globalCFM=solver.cfm, physicsClientId=self._cid)
         self._solver = solver
+
+    # -- the attitude assist (not Gazebo's: a curriculum's help) ---------------------------------
+    @property
+    def attitude_assist(self) -> tuple[float, float]:
+        """The assist's (stiffness N m/rad, damping N m s/rad); (0, 0): off."""
+        return self._assist
+
+    @_changes(Change.PHYSICS)
+    def set_attitude_assist(self, stiffness: float, damping: float) -> None:
+        """From the next step on, pull the base upright (module docstring); (0, 0) turns it off; resets keep it.
+        ValueError for a gain that is not a finite number in [0, MAX_ASSIST_GAIN]."""
+        for name, value in (("stiffness", stiffness), ("damping", damping)):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and 0.0 <= value <= MAX_ASSIST_GAIN):
+                raise ValueError(f"attitude assist {name} must be a finite number from 0 to {MAX_ASSIST_GAIN:g}, "
+                                 f"got {value!r}")
+        self._assist = (float(stiffness), float(damping))
+
+    def _assist_torque(self) -> list[float]:
+        """The assist's torque on the base now (world frame): stiffness x (base z cross world z), whose length is
+        the sine of the tilt, minus damping x the horizontal angular velocity."""
+        stiffness, damping = self._assist
+        orientation = p.getBasePositionAndOrientation(self._body, physicsClientId=self._cid)[1]
+        angular = p.getBaseVelocity(self._body, physicsClientId=self._cid)[1]
+        z = rotate(orientation, (0.0, 0.0, 1.0))
+        return [stiffness * z[1] - damping * angular[0], -stiffness * z[0] - damping * angular[1], 0.0]
 
     # -- Gazebo's set_model_state (its get_model_state and get_link_state: pybullet_sim.measurements) --
     @_changes(Change.STATE)

@@ -1,8 +1,8 @@
 """Evaluate a trained run: its greedy policy, then a uniformly random one, on the run's own task.
 
   evaluate.py --qtable RUN [--episodes N] [--horizon-s S] [--backend direct|ros] [--seed S]
-              [--initial-tilt LOW HIGH] [--push V] [--video PATH.mp4 [--video-episodes N] [--video-size WxH]
-              [--slow-motion K]]
+              [--initial-tilt LOW HIGH] [--push V] [--assist S]
+              [--video PATH.mp4 [--video-episodes N] [--video-size WxH] [--slow-motion K]]
   evaluate.py --policy NAME [--task TASK] [--speed M_S] [the options above but --qtable and --video]
   evaluate.py --policy constant --action N [--task TASK] [the same options]
 
@@ -28,6 +28,9 @@ the trivial baselines a learned policy must beat besides random ones; its JSON a
 sim time, for every policy: the env's own pushes (params push_speed V, push_interval 1-3 s;
 robot_rl.envs.pushes: drawn from the evaluation seed and the episode's number); the JSON adds "push": V.
 Without it a run trained with pushes is evaluated without them.
+`--assist S` holds the run's attitude assist (params attitude_assist, the sim's torque that pulls the base upright,
+robot_rl.runs.curriculum) at scale S from 0 to 1 for every policy; the JSON adds "assist": {"scale", "stiffness",
+"damping"}. Without it (or with 0) a run trained with the assist is evaluated without it.
 `--video` records the first `--video-episodes` (3) greedy episodes to an mp4 (robot_rl.runs.video: real
 time, or `--slow-motion K` times slower, at most 30 frames/s, from the robot's camera of its sim config) and
 adds "video": {"path", "episodes", "frames", "fps", "slow_motion"} to the JSON; recording changes none of the
@@ -71,6 +74,28 @@ MAX_VIDEO_SIDE = 4096
 MAX_SEED = 2**31 - 1      # as a training's seed:= (ROS's int, numpy's seed)
 MAX_HORIZON_S = 86400.0   # s of sim time per episode at most: a day
 EVAL_INITIAL_TILT = (0.02, 0.05)  # rad: evaluation episodes start leaning this much, where the task can
+
+
+def with_assist(params: Any, scale: float, source: str = "--assist") -> Any:
+    """`params` with the attitude assist held at `scale` of the params' gains (0: none, whatever the run trained
+    with); ParamError for a scale > 0 where the params have no assist."""
+    assist = params.attitude_assist
+    if scale > 0.0 and not assist.active:
+        raise ParamError(f"{source}: the run has no attitude assist (its params' attitude_assist has no stiffness "
+                         f"and no damping)")
+    if not assist.active or (scale == assist.scale and not assist.adapt_every):
+        return params
+    held = {**assist.to_mapping(), "scale": scale, "adapt_every": 0}
+    if scale == 0.0:
+        held.update(stiffness=0.0, damping=0.0, scale=1.0)
+    return params.with_changes(source, attitude_assist=held)
+
+
+def assist_report(params: Any) -> dict[str, Any]:
+    """The JSON's "assist" entry for params held by with_assist (empty without an assist)."""
+    assist = params.attitude_assist
+    return {"assist": {"scale": assist.scale, "stiffness": assist.stiffness, "damping": assist.damping}} \
+        if assist.active else {}
 
 
 def with_push(params: Any, push: float, source: str = "--push") -> Any:
@@ -161,11 +186,12 @@ def with_initial_tilt(params: Any, tilt: tuple[float, float] | None, source: str
 
 def evaluate(run: TrainedRun, episodes: int, horizon_s: float, backend: str, seed: int,
              video: VideoRequest | None = None, initial_tilt: tuple[float, float] | None = None,
-             push: float = 0.0) -> dict[str, Any]:
+             push: float = 0.0, assist: float = 0.0) -> dict[str, Any]:
     """Greedy, then seeded uniformly random, `episodes` each, from a seeded first reset; `video` records
     the first greedy episodes; `initial_tilt` (LOW, HIGH rad) replaces the run's params' (None: the run's);
-    `push` > 0: kicks of that many m/s (with_push; 0: none, even for a run trained with pushes)."""
-    params = with_push(with_initial_tilt(run.params, initial_tilt, "--initial-tilt"), push)
+    `push` > 0: kicks of that many m/s (with_push; 0: none, even for a run trained with pushes); `assist`: the
+    run's attitude assist at that scale (with_assist; 0: none)."""
+    params = with_assist(with_push(with_initial_tilt(run.params, initial_tilt, "--initial-tilt"), push), assist)
     steps = max(1, round(horizon_s / params.running_step))
     rendering = {} if video is None else {"render_mode": "rgb_array", "render_width": video.width,
                                           "render_height": video.height}
@@ -187,6 +213,7 @@ def evaluate(run: TrainedRun, episodes: int, horizon_s: float, backend: str, see
               "random": random_policy}
     if push > 0.0:
         report["push"] = push
+    report.update(assist_report(params))
     if recorder is not None:
         report["video"] = {"path": str(recorder.path), "episodes": recorder.episodes_recorded,
                            "frames": recorder.frames, "fps": recorder.fps, "slow_motion": recorder.slow_motion}
@@ -194,10 +221,11 @@ def evaluate(run: TrainedRun, episodes: int, horizon_s: float, backend: str, see
 
 
 def evaluate_scripted(task: TaskSpec[Any], name: str, scripted: ScriptedPolicy, params: Any, episodes: int,
-                      horizon_s: float, backend: str, seed: int, speed: float, push: float = 0.0) -> dict[str, Any]:
+                      horizon_s: float, backend: str, seed: int, speed: float, push: float = 0.0,
+                      assist: float = 0.0) -> dict[str, Any]:
     """`episodes` episodes of the scripted policy `name` on `params` (as scripted.env_params made them),
     from a seeded first reset."""
-    params = with_push(params, push)
+    params = with_assist(with_push(params, push), assist)
     steps = max(1, round(horizon_s / params.running_step))
     env = make_env(task, params=params, backend=backend, seed=seed, max_episode_steps=steps)
     try:
@@ -209,7 +237,7 @@ def evaluate_scripted(task: TaskSpec[Any], name: str, scripted: ScriptedPolicy, 
     tilt = getattr(params, "initial_tilt", None)
     return {"task": task.env_id, "episodes": episodes, "horizon_s": steps * params.running_step, "seed": seed,
             "initial_tilt": None if tilt is None else [tilt.low, tilt.high], "policy": name, "speed": speed,
-            name: figures, **({"push": push} if push > 0.0 else {})}
+            name: figures, **({"push": push} if push > 0.0 else {}), **assist_report(params)}
 
 
 def video_size(text: str) -> tuple[int, int]:
@@ -268,6 +296,8 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
     parser.add_argument("--push", type=float, default=0.0, metavar="V",
                         help="kick the base V m/s horizontally in a random direction about every 2 s of sim time, "
                              "drawn from --seed (default 0: no pushes)")
+    parser.add_argument("--assist", type=float, default=0.0, metavar="S",
+                        help="hold the run's attitude assist at scale S from 0 to 1 (default 0: none)")
     parser.add_argument("--video", type=Path, help="record the first greedy episodes to this .mp4 file")
     parser.add_argument("--video-episodes", type=int, default=3, help="greedy episodes in the video (default 3)")
     parser.add_argument("--video-size", type=video_size, default=(320, 240), help="frame size WxH (default 320x240)")
@@ -276,6 +306,8 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
     args = parser.parse_args(argv)
     if not (math.isfinite(args.push) and args.push >= 0.0):
         parser.error(f"--push must be a speed >= 0 (m/s), got {args.push}")
+    if not 0.0 <= args.assist <= 1.0:  # NaN too
+        parser.error(f"--assist must be a scale from 0 to 1, got {args.assist}")
     if (args.run is None) == (args.policy == "greedy"):
         parser.error("--qtable RUN is needed for the greedy policy, and only for it")
     if args.episodes < 1:
@@ -326,11 +358,12 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
             parser.exit(2, f"evaluate.py: --initial-tilt: the task {run.task.env_id} has no initial tilt\n")
         initial_tilt = (args.initial_tilt[0], args.initial_tilt[1])
     try:
-        with_initial_tilt(run.params, initial_tilt, "--initial-tilt")
+        with_assist(with_initial_tilt(run.params, initial_tilt, "--initial-tilt"), args.assist)
     except ParamError as error:
         parser.exit(2, f"evaluate.py: {error}\n")
     try:
-        report = evaluate(run, args.episodes, horizon_s, args.backend, args.seed, video, initial_tilt, args.push)
+        report = evaluate(run, args.episodes, horizon_s, args.backend, args.seed, video, initial_tilt, args.push,
+                          args.assist)
     except (SimConnectionError, SimStateError, RunFileError) as error:
         # SimStateError: the direct backend's non-finite readings; RunFileError: weights that do not fit the model
         parser.exit(1, f"evaluate.py: {error}\n")
@@ -346,7 +379,7 @@ def _main_scripted(parser: argparse.ArgumentParser, args: argparse.Namespace, ta
         if args.initial_tilt is not None and not tilted:
             parser.exit(2, f"evaluate.py: --initial-tilt: the task {task.env_id} has no initial tilt\n")
         tilt = (tuple(args.initial_tilt) if args.initial_tilt is not None else EVAL_INITIAL_TILT) if tilted else None
-        params = with_initial_tilt(params, tilt, "--initial-tilt")
+        params = with_assist(with_initial_tilt(params, tilt, "--initial-tilt"), args.assist)
     except ParamError as error:
         parser.exit(2, f"evaluate.py: {error}\n")
     horizon_s = args.horizon_s if args.horizon_s is not None else task.eval_horizon_s
@@ -354,7 +387,7 @@ def _main_scripted(parser: argparse.ArgumentParser, args: argparse.Namespace, ta
         if over_ros(args.backend):
             init_ros_node(node_name)
         report = evaluate_scripted(task, args.policy, scripted, params, args.episodes, horizon_s, args.backend,
-                                   args.seed, args.speed, args.push)
+                                   args.seed, args.speed, args.push, args.assist)
     except (SimConnectionError, SimStateError) as error:
         parser.exit(1, f"evaluate.py: {error}\n")
     except ValueError as error:  # a policy that cannot act in the task (constant's --action, a --speed refused)

@@ -185,6 +185,30 @@ class PushInterval(Params):
 
 
 @dataclass(frozen=True, kw_only=True)
+class AttitudeAssist(Params):
+    """The sim's attitude assist, a curriculum's help (pybullet_sim's World.set_attitude_assist): a torque that pulls
+    the base upright, of gains scale x stiffness and scale x damping; with adapt_every > 0 the run adapts the scale
+    to how often its episodes end by termination (a fall), as robot_rl.runs.curriculum says."""
+
+    stiffness: float = param(low=0.0, high=1e4, default=0.0, doc="N m/rad of tilt at scale 1 (0 with damping 0: off)")
+    damping: float = param(low=0.0, high=1e4, default=0.0, doc="N m s/rad of horizontal spin at scale 1")
+    scale: float = param(low=0.0, high=1.0, default=1.0, doc="the scale the run starts with")
+    adapt_every: int = param(low=0, high=MAX_COUNT, default=0,
+                             doc="episodes between two changes of the scale (0: it stays)")
+    lower_at_most: int = param(low=0, high=MAX_COUNT, default=5,
+                               doc="lower the scale when at most this many of those episodes fell")
+    raise_at_least: int = param(low=1, high=MAX_COUNT, default=15,
+                                doc="raise it when at least this many fell")
+    factor: float = param(low=0.0, low_open=True, high=1.0, high_open=True, default=0.7,
+                          doc="lower: scale x factor; raise: scale / factor (at most 1)")
+    floor: float = param(low=0.0, high=1.0, default=0.01, doc="a lowered scale under this becomes 0")
+
+    @property
+    def active(self) -> bool:
+        return self.stiffness > 0.0 or self.damping > 0.0
+
+
+@dataclass(frozen=True, kw_only=True)
 class TaskParams(Params):
     """What every task's YAML holds: the tutorials' Q-learning keys and the env step."""
 
@@ -208,11 +232,22 @@ class TaskParams(Params):
                                   "random times (robot_rl.envs.pushes; 0: never; evaluate.py --push sets it)")
     push_interval: PushInterval = param(default=PushInterval(), doc="s of sim time between two pushes: uniform in "
                                                                     "[low, high]")
+    attitude_assist: AttitudeAssist = param(default=AttitudeAssist(),
+                                            doc="a torque of the sim's that pulls the base upright, taken away as "
+                                                "the run learns (robot_rl.runs.curriculum; off by default)")
 
     def check(self, source: str) -> None:
         if not self.push_interval.low <= self.push_interval.high:
             raise ParamError(f"{source}: parameter 'push_interval/low' ({self.push_interval.low}) must not be above "
                              f"'push_interval/high' ({self.push_interval.high})")
+        assist = self.attitude_assist
+        if assist.adapt_every and not assist.active:
+            raise ParamError(f"{source}: parameter 'attitude_assist/adapt_every' ({assist.adapt_every}) adapts an "
+                             f"assist that is off: give it a stiffness or a damping")
+        if assist.adapt_every and not assist.lower_at_most < assist.raise_at_least <= assist.adapt_every:
+            raise ParamError(f"{source}: parameter 'attitude_assist': lower_at_most ({assist.lower_at_most}) < "
+                             f"raise_at_least ({assist.raise_at_least}) <= adapt_every ({assist.adapt_every}) "
+                             f"must hold")
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):

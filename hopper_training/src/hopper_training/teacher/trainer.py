@@ -209,7 +209,8 @@ class BcDaggerTrainer:
             self.state = run.prepare_resume(self._restore)
             self.resuming = (f"Resuming {run.path} after stage {len(self.rounds)} of {agent_params.stages()} "
                              f"(episode {self.state.episode}); a stage under way at the stop is collected anew")
-        self.ledger = RunLedger(run, task, agent_params.episodes(), self.state, self, hooks)
+        self.ledger = RunLedger(run, task, agent_params.episodes(), self.state, self, hooks,
+                                assist=params.attitude_assist)  # the student's stages: the assist stays
 
     def _first_net(self) -> StudentNet:
         """The student as the run begins it: its weights drawn from the training seed alone."""

@@ -9,7 +9,9 @@ messages (pybullet_sim/Readings), so that a lockstep client needs one service ca
 subscription; ~step_packed (pybullet_sim/StepPacked) is the same step answered with the sensors' values
 (pybullet_sim/PackedReadings) for clients that want readings; ~reset (pybullet_sim/Reset) is Gazebo's
 reset_world or reset_simulation answered either way. ~render (pybullet_sim/Render) answers an RGB
-image of the robot from the World's following camera.
+image of the robot from the World's following camera. ~set_attitude_assist (pybullet_sim/SetAttitudeAssist) sets
+the World's attitude assist, a torque that pulls the base upright (a training curriculum's; answered with the
+gains it replaced).
 
 Services, with Gazebo's names and types: /gazebo/{pause,unpause}_physics, reset_{simulation,world}
 (std_srvs/Empty), /gazebo/{get,set}_physics_properties, get_world_properties, {get,set}_model_state,
@@ -45,6 +47,8 @@ from pybullet_sim.srv import (
     RenderResponse,
     Reset,
     ResetResponse,
+    SetAttitudeAssist,
+    SetAttitudeAssistResponse,
     Step,
     StepPacked,
     StepPackedResponse,
@@ -55,7 +59,7 @@ from pybullet_sim.srv import (
 from ..config import SensorConfig, parse_robot_config
 from ..controller_manager import ControllerManager
 from ..errors import ConfigError, UrdfError
-from ..names import RENDER_SERVICE, RESET_SERVICE, STEP_PACKED_SERVICE, STEP_SERVICE
+from ..names import ATTITUDE_ASSIST_SERVICE, RENDER_SERVICE, RESET_SERVICE, STEP_PACKED_SERVICE, STEP_SERVICE
 from ..readings import JointStateReading
 from ..sensors import SENSOR_KINDS, pack_readings
 from ..validation import MAX_TIME_STEP, MAX_WAIT, param
@@ -157,6 +161,7 @@ class SimNode:
         rospy.Service(RESET_SERVICE, Reset, self._handle_reset)
         self.gazebo_services = GazeboServices(self)
         rospy.Service(RENDER_SERVICE, Render, self._handle_render)
+        rospy.Service(ATTITUDE_ASSIST_SERVICE, SetAttitudeAssist, self._handle_attitude_assist)
         rospy.on_shutdown(self._wake_main_loop)
         with self._lock:
             self._publish_all(self.stamp(), force_clock=True)
@@ -438,6 +443,15 @@ class SimNode:
             except ValueError as error:
                 raise rospy.ServiceException(f"{RENDER_SERVICE}: {error}") from None
             return RenderResponse(image=image_msg(rgb, self.stamp()))
+
+    def _handle_attitude_assist(self, request):
+        with self.exclusive():
+            previous = self.world.attitude_assist
+            try:
+                self.world.set_attitude_assist(request.stiffness, request.damping)
+            except ValueError as error:
+                return SetAttitudeAssistResponse(False, str(error), *previous)
+            return SetAttitudeAssistResponse(True, "", *previous)
 
     # -- main loop ------------------------------------------------------------------------------
     def spin(self):

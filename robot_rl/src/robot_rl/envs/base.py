@@ -27,6 +27,10 @@ so that a recorder can take frames in real time within a step, and runs each per
 Pushes (params push_speed > 0, robot_rl.envs.pushes): before a control period in which a push's time falls, the
 backend kicks the base horizontally; the times and directions come from the last seeded reset's seed and the
 episodes since it, so training and evaluate.py --push share one seeded schedule on either backend.
+
+The attitude assist (params attitude_assist with a stiffness or a damping): the env sets the sim's torque that
+pulls the base upright at the params' scale when it starts, and at any other with `set_assist_scale` (a run's
+curriculum, robot_rl.runs.curriculum); over ROS the sim gets its own assist back when the env closes.
 """
 from __future__ import annotations
 
@@ -98,6 +102,12 @@ class RobotEnv(gymnasium.Env[np.ndarray, Any], Generic[P], abc.ABC):
         interval = self.params.push_interval
         self.pushes = PushPlan(self.params.push_speed, (interval.low, interval.high))
         self.closed = False
+        if self.params.attitude_assist.active:
+            try:
+                self.set_assist_scale(self.params.attitude_assist.scale)
+            except BaseException:
+                self.backend.close()
+                raise
         self.action_space, self.observation_space = self._spaces()
 
     # -- task hooks -----------------------------------------------------------------------------
@@ -185,6 +195,14 @@ class RobotEnv(gymnasium.Env[np.ndarray, Any], Generic[P], abc.ABC):
             self.backend.kick(kick)
         return self.backend.step(self.physics_steps)
 
+    def set_assist_scale(self, scale: float) -> None:
+        """The sim's attitude assist from the next step on: the params' stiffness and damping times `scale`."""
+        self._check_open()
+        assist = self.params.attitude_assist
+        if not (0.0 <= scale <= 1.0):
+            raise ValueError(f"the attitude assist's scale must be from 0 to 1, got {scale!r}")
+        self.backend.set_attitude_assist(scale * assist.stiffness, scale * assist.damping)
+
     def render(self) -> np.ndarray | None:  # type: ignore[override]  # gymnasium 1.2: an unbound RenderFrame
         """rgb_array: the current frame; human: update the view and keep sim time no faster than wall time."""
         self._check_open()
@@ -211,3 +229,9 @@ class RobotEnv(gymnasium.Env[np.ndarray, Any], Generic[P], abc.ABC):
     def _check_open(self) -> None:
         if self.closed:
             raise gymnasium.error.ClosedEnvironmentError(f"{self.task.env_id}: the env is closed: make a new one")
+
+
+def assist_setter(env: Any) -> Callable[[float], None] | None:
+    """`env`'s set_assist_scale if it is one RobotEnv (wrapped or not); None for a vector of envs."""
+    unwrapped = getattr(env, "unwrapped", None)
+    return unwrapped.set_assist_scale if isinstance(unwrapped, RobotEnv) else None

@@ -3,7 +3,9 @@
 A trainer keeps its learning loop and hands each finished episode to its `RunLedger`, which counts it
 (`TrainingState`), appends its episodes.csv row with the task's metrics, logs its "EP:" line, writes a
 checkpoint every `checkpoint_every` episodes, logs a progress line every `progress_every_s` seconds
-and, at the end, a last checkpoint and summary.json. When the run cannot go on (Ctrl-C, the sim gone,
+and, at the end, a last checkpoint and summary.json. A run whose params adapt the attitude assist
+(robot_rl.runs.curriculum) has its curriculum here too: the ledger counts the falls, tells the trainer's env the
+new scale, logs it, and keeps it in the TrainingState. When the run cannot go on (Ctrl-C, the sim gone,
 an error), `saved_on_stop` writes a checkpoint and a summary marked incomplete (a failure to write is
 logged, not raised) before the error goes on. What a checkpoint holds, the agent's own words in the
 log lines and its own summary entries come from the trainer (`Learner`).
@@ -17,7 +19,9 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from ..params import AttitudeAssist
 from ..task import Episode, MetricValue, TaskSpec
+from .curriculum import AssistCurriculum
 from .results import EpisodeRecord, RunDirectory, aggregate
 
 PROGRESS_WINDOW = 50   # episodes the progress line's headline metric is averaged over
@@ -35,6 +39,8 @@ class TrainingState:
     sim_time: float = 0.0
     wall_time: float = 0.0
     env_steps: int = 0
+    assist_scale: float | None = None     # the attitude assist's curriculum (None: the run has none)
+    assist_window: list[int] = field(default_factory=list)  # its window under way: 1 per episode that fell
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> TrainingState:
@@ -43,7 +49,9 @@ class TrainingState:
         if not (isinstance(state.episode, int) and state.episode >= 0 and isinstance(state.env_steps, int)
                 and all(isinstance(v, (int, float)) and math.isfinite(v) for v in numbers)
                 and isinstance(state.last_time_steps, list)
-                and all(isinstance(v, int) for v in state.last_time_steps)):
+                and all(isinstance(v, int) for v in state.last_time_steps)
+                and (state.assist_scale is None or isinstance(state.assist_scale, (int, float)))
+                and isinstance(state.assist_window, list)):
             raise ValueError(f"the training state {values!r} has wrong types")
         return state
 
@@ -117,17 +125,32 @@ class RunLedger:
 
     `count_env_steps`, if given, counts the env steps itself (SB3's num_timesteps, which include the
     steps of episodes under way); otherwise they are the steps of the episodes that ended. With a
-    budget of `max_steps` env steps, the progress line counts steps instead of episodes."""
+    budget of `max_steps` env steps, the progress line counts steps instead of episodes. `assist`: the run's
+    attitude assist params; when they adapt, `set_assist` hands a new scale to the trainer's env (ValueError when
+    the trainer has none to give: its envs cannot change the assist during a run)."""
 
     def __init__(self, run: RunDirectory, task: TaskSpec[Any], nepisodes: int, state: TrainingState, learner: Learner,
                  hooks: TrainingHooks, n_envs: int = 1, count_env_steps: Callable[[], int] | None = None,
-                 max_steps: int | None = None):
+                 max_steps: int | None = None, assist: AttitudeAssist | None = None,
+                 set_assist: Callable[[float], None] | None = None):
         self.run, self.task, self.nepisodes, self.state, self.learner = run, task, nepisodes, state, learner
         self.log, self.log_episode = hooks.log, hooks.log_episode or hooks.log
         self.on_episode, self.should_stop = hooks.on_episode, hooks.should_stop
         self.checkpoint_every, self.progress_every_s = hooks.checkpoint_every, hooks.progress_every_s
         self.n_envs, self.count_env_steps, self.max_steps = n_envs, count_env_steps, max_steps
         self.episodes_per_env = [0] * n_envs
+        self.curriculum: AssistCurriculum | None = None
+        if assist is not None and assist.adapt_every:
+            if set_assist is None:
+                raise ValueError(f"attitude_assist/adapt_every ({assist.adapt_every}) changes the sim's assist "
+                                 f"during the run, which this trainer cannot do with {n_envs} env(s): train with "
+                                 f"envs:=1 and a Stable-Baselines3 or Q-learning agent, or set adapt_every 0")
+            try:
+                self.curriculum = AssistCurriculum(assist, state.assist_scale, state.assist_window)
+            except ValueError as error:
+                raise ValueError(f"{run.checkpoint_json}: {error}") from None
+            self.set_assist = set_assist
+            state.assist_scale = self.curriculum.scale
 
     def start(self) -> None:
         """Start the clocks (a resumed run's wall time goes on) and read the recent headline metrics."""
@@ -137,6 +160,8 @@ class RunLedger:
         recent = self.run.read_episodes()[-PROGRESS_WINDOW:]
         self.headline: list[MetricValue] = [r.metrics.get(self.task.headline_metric, math.nan) for r in recent]
         self.recent_lengths = [r.steps for r in recent[-ETA_WINDOW:]]
+        if self.curriculum is not None:  # a resumed run's scale, where its checkpoint left it
+            self.set_assist(self.curriculum.scale)
 
     def episode_done(self, episode: Episode, highest: float, epsilon: float, env_index: int = 0) -> None:
         """Count an ended episode of env `env_index` (`highest`: its highest return so far, `epsilon` its
@@ -158,12 +183,26 @@ class RunLedger:
                                               epsilon=epsilon, sim_time=state.sim_time, wall_time=state.wall_time,
                                               metrics=metrics))
         self.on_episode(episode.return_)
+        self._adapt_assist(episode.terminated)
         per_env = f" - env {env_index + 1}/{self.n_envs} (episodes per env: " \
                   f"{', '.join(map(str, self.episodes_per_env))})" if self.n_envs > 1 else ""
         self.log_episode(f"EP: {state.episode} - [{self.learner.episode_label(epsilon)}] - Reward: "
                          f"{episode.return_:.1f}     Time: {format_duration(state.wall_time)}{per_env}")
         if state.episode % self.checkpoint_every == 0:
             self.checkpoint()
+
+    def _adapt_assist(self, fell: bool) -> None:
+        """Count the episode in the assist's curriculum; a new scale goes to the env and the log."""
+        curriculum = self.curriculum
+        if curriculum is None:
+            return
+        previous = curriculum.scale
+        if curriculum.episode_ended(fell):
+            self.set_assist(curriculum.scale)
+            self.log(f"attitude assist: scale {previous:.4g} -> {curriculum.scale:.4g} after episode "
+                     f"{self.state.episode} ({curriculum.last_falls} of the last {curriculum.assist.adapt_every} "
+                     f"episodes fell)")
+        self.state.assist_scale, self.state.assist_window = curriculum.scale, list(curriculum.window)
 
     def checkpoint_due(self) -> bool:
         """Whether the next episode that ends brings a checkpoint."""
@@ -194,7 +233,8 @@ class RunLedger:
         self.log(f"progress: {unit} {count}/{total} ({100.0 * count / total:.0f} %), "
                  f"{state.env_steps / max(now - self._wall_start, 1e-9):.0f} env steps/s, ETA {format_duration(eta)}, "
                  f"{name} over the last {len(self.headline)} episodes: {'n/a' if value is None else f'{value:.3g}'}"
-                 f"{self.learner.exploration_label()}")
+                 f"{self.learner.exploration_label()}"
+                 f"{'' if self.curriculum is None else f', attitude assist scale {self.curriculum.scale:.3g}'}")
 
     def eta_s(self, now: float) -> float:
         """Seconds left (NaN until known): the env steps left at this run's env step rate. Without a step budget,

@@ -20,6 +20,7 @@ from typing import Any
 
 import gymnasium
 
+from ...envs.base import assist_setter
 from ...params import ParamError, Params, TaskParams, load_yaml_file
 from ...runs.ledger import DEFAULT_HOOKS, Learner, RunLedger, TrainingHooks, TrainingState, restored_state
 from ...runs.results import EpisodeRecord, RunDirectory
@@ -64,7 +65,8 @@ class QLearningTrainer(Learner):
             self.state = TrainingState()
             self.initial_epsilon = params.epsilon
         self.ledger = RunLedger(run, task, params.nepisodes, self.state, self, hooks,
-                                n_envs=getattr(env, "num_envs", 1))
+                                n_envs=getattr(env, "num_envs", 1), assist=params.attitude_assist,
+                                set_assist=assist_setter(env))
 
     def _restore(self, checkpoint: dict[str, Any]) -> tuple[QLearn, TrainingState, float]:
         """Everything a checkpoint holds, checked against this run (ValueError/KeyError/TypeError if not)."""

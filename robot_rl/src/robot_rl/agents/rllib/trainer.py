@@ -104,7 +104,8 @@ class RllibPpoTrainer:
             self.state = TrainingState()
             write_text_atomic(self.runners_csv, ",".join(RUNNERS_COLUMNS) + "\n")
         self.ledger = RunLedger(run, task, params.nepisodes, self.state, self, hooks, n_envs=envs.num_envs,
-                                count_env_steps=lambda: self.env_steps, max_steps=max_steps)
+                                count_env_steps=lambda: self.env_steps, max_steps=max_steps,
+                                assist=params.attitude_assist)  # its runners' envs: the assist stays
 
     @property
     def runners_csv(self) -> Path:

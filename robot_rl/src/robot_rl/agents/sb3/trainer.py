@@ -41,6 +41,7 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecEnvWrapper
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvObs, VecEnvStepReturn
 
+from ...envs.base import assist_setter
 from ...params import Params, TaskParams
 from ...runs.ledger import (
     DEFAULT_HOOKS,
@@ -191,7 +192,9 @@ class DeepTrainer(Learner):
         if self.schedule is not None:
             self.schedule.progress = self.state.episode / params.nepisodes
         self.ledger = RunLedger(run, task, params.nepisodes, self.state, self, hooks, n_envs=self.n_envs,
-                                count_env_steps=self._count_steps, max_steps=max_steps)
+                                count_env_steps=self._count_steps, max_steps=max_steps,
+                                assist=params.attitude_assist,
+                                set_assist=assist_setter(env))
 
     def _restore(self, checkpoint: dict[str, Any]) -> tuple[TrainingState, int]:
         """The counters of a checkpoint, checked against this run (ValueError/KeyError/TypeError if not)."""

@@ -4,7 +4,8 @@ Every backend exposes the same three calls, each returning the same `Readings`:
 `reset(restart_time)`, `set_command(controller, value)` + `step(physics_steps)`; and the same
 `render(width, height)`, an RGB frame from the sim's camera that follows the robot, `place(base,
 joints)`, which puts the robot in a start pose after a reset (Gazebo's set_model_configuration and
-set_model_state), and `kick(velocity_change)`, a push of the base (get_model_state and set_model_state).
+set_model_state), `kick(velocity_change)`, a push of the base (get_model_state and set_model_state), and
+`set_attitude_assist(stiffness, damping)`, the sim's torque that pulls the base upright (a curriculum's help).
 Every backend refuses readings that are not finite numbers (a state that blew up, whatever the path): the call
 raises, naming the first such reading, instead of handing NaN to the task.
 The backends: robot_rl.envs.backends.direct (in-process) and .ros (over ROS); .factory makes one by name.
@@ -114,6 +115,11 @@ class Backend(abc.ABC):
         """Add a horizontal velocity (m/s, world x and y) to the robot's base, its pose, its spin and its joints as
         they are (a push, robot_rl.envs.pushes); the readings change with the next step."""
         raise NotImplementedError(f"{type(self).__name__} cannot push the robot")
+
+    def set_attitude_assist(self, stiffness: float, damping: float) -> None:
+        """Pull the base upright from the next step on (pybullet_sim's attitude assist: N m/rad of tilt, N m s/rad of
+        horizontal spin; 0, 0: off); resets keep it."""
+        raise NotImplementedError(f"{type(self).__name__} cannot assist the robot's attitude")
 
     def show(self) -> None:  # noqa: B027 (optional: over ROS the sim node's window or rviz shows the robot)
         """Bring the human view of the robot up to date."""

@@ -68,6 +68,9 @@ class DirectBackend(Backend):
         self.world.set_model_state(replace(state, linear_velocity=(vx + velocity_change[0], vy + velocity_change[1],
                                                                    vz)))
 
+    def set_attitude_assist(self, stiffness: float, damping: float) -> None:
+        self.world.set_attitude_assist(stiffness, damping)
+
     def step(self, physics_steps: int) -> Readings:
         if not self.world.replay_from_reset(physics_steps):
             self.world.step(physics_steps)

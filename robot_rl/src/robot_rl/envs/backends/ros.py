@@ -25,7 +25,7 @@ from sensor_msgs.msg import JointState
 from gazebo_msgs.msg import ModelState
 from gazebo_msgs.srv import GetModelState, GetPhysicsProperties, SetModelConfiguration, SetModelState
 from pybullet_sim.config import parse_robot_config
-from pybullet_sim.names import PHYSICS_SERVICE
+from pybullet_sim.names import ATTITUDE_ASSIST_SERVICE, PHYSICS_SERVICE
 from pybullet_sim.readings import FrameState
 from pybullet_sim.ros import messages
 from pybullet_sim.ros.client import (
@@ -36,6 +36,7 @@ from pybullet_sim.ros.client import (
 )
 from pybullet_sim.ros.messages import SENSOR_MESSAGES
 from pybullet_sim.sensors import unpack_readings
+from pybullet_sim.srv import SetAttitudeAssist
 from pybullet_sim.urdf import parse_urdf_joints
 
 from .base import Backend, Readings, non_finite_problem
@@ -103,6 +104,7 @@ class RosBackend(Backend):
         self._stamp: float | None = None  # sim time of the last answer: the next one is checked against it
         self._model_name = parse_urdf_joints(robot.urdf_path.read_text(encoding="utf-8"), str(robot.urdf_path))[0]
         self._placing: tuple[Any, Any] | None = None  # their service proxies, made by the first place()
+        self._assist_found: tuple[float, float] | None = None  # the sim's attitude assist before the first set
 
     def _readings(self, packed: Any) -> Readings:
         """Readings from a pybullet_sim/PackedReadings answer."""
@@ -208,7 +210,24 @@ class RosBackend(Backend):
         if not (now.success and answer.success):
             raise SimConnectionError(f"a push: the sim refused: {now.status_message} {answer.status_message}")
 
+    def set_attitude_assist(self, stiffness: float, damping: float) -> None:
+        try:
+            rospy.wait_for_service(ATTITUDE_ASSIST_SERVICE, self.timeout)
+            answer = rospy.ServiceProxy(ATTITUDE_ASSIST_SERVICE, SetAttitudeAssist)(stiffness, damping)
+        except (rospy.ServiceException, rospy.ROSException) as error:
+            raise SimConnectionError(f"service {ATTITUDE_ASSIST_SERVICE} failed: {error} (is the sim node of this "
+                                     f"pybullet_sim version running?)") from None
+        if not answer.success:
+            raise ValueError(f"{ATTITUDE_ASSIST_SERVICE} refused: {answer.status_message}")
+        if self._assist_found is None:
+            self._assist_found = (answer.previous_stiffness, answer.previous_damping)
+
     def close(self) -> None:
+        if self._assist_found is not None:  # the sim's assist as this env found it
+            try:
+                rospy.ServiceProxy(ATTITUDE_ASSIST_SERVICE, SetAttitudeAssist)(*self._assist_found)
+            except (rospy.ServiceException, rospy.ROSException, OSError) as error:
+                rospy.logwarn("could not put the sim's attitude assist back to %s: %s", self._assist_found, error)
         if self._placing is not None:
             for proxy in self._placing:
                 proxy.close()

@@ -1,0 +1,54 @@
+"""The attitude assist's curriculum: the scale of the sim's upright-pulling torque, taken away as fast as the
+agent keeps up (params attitude_assist; pybullet_sim's World.set_attitude_assist).
+
+The run starts at `scale`. With adapt_every N > 0, after every N episodes that ended, the scale is lowered
+(x factor; under floor it becomes 0) when at most lower_at_most of them fell, and raised (/ factor, at most 1)
+when raise_at_least or more did; an episode fell when the task terminated it (a truncation is no fall). The
+scale and the outcomes of the window under way are part of the run's TrainingState, so a resumed run goes on
+where its checkpoint left the curriculum. Pure: the trainer hands the scale to its env (RobotEnv's
+set_assist_scale).
+"""
+from __future__ import annotations
+
+from ..params import AttitudeAssist
+
+
+class AssistCurriculum:
+    """The scale of `assist` (its params), adapted from the episodes' outcomes; `scale` and `window` (1: the
+    episode fell) are what a checkpoint keeps."""
+
+    def __init__(self, assist: AttitudeAssist, scale: float | None = None, window: list[int] | None = None):
+        self.assist = assist
+        self.scale = assist.scale if scale is None else scale
+        self.window = list(window or [])
+        self.last_falls = 0  # the falls of the last window that ended
+        if not (0.0 <= self.scale <= 1.0) or not all(outcome in (0, 1) for outcome in self.window) \
+                or len(self.window) >= max(assist.adapt_every, 1):
+            raise ValueError(f"the attitude assist's state (scale {scale!r}, window {window!r}) does not fit "
+                             f"its params (adapt_every {assist.adapt_every})")
+
+    @property
+    def gains(self) -> tuple[float, float]:
+        """The sim's stiffness (N m/rad) and damping (N m s/rad) at the current scale."""
+        return self.scale * self.assist.stiffness, self.scale * self.assist.damping
+
+    def episode_ended(self, fell: bool) -> bool:
+        """Count an episode; True when the scale changed."""
+        assist = self.assist
+        if not assist.adapt_every:
+            return False
+        self.window.append(int(fell))
+        if len(self.window) < assist.adapt_every:
+            return False
+        falls, self.window = sum(self.window), []
+        self.last_falls = falls
+        if falls <= assist.lower_at_most:
+            lowered = self.scale * assist.factor
+            scale = 0.0 if lowered < assist.floor else lowered
+        elif falls >= assist.raise_at_least:
+            scale = min(1.0, max(self.scale, assist.floor) / assist.factor)
+        else:
+            return False
+        scale = round(scale, 6)
+        changed, self.scale = scale != self.scale, scale
+        return changed
