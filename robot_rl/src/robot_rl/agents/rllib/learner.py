@@ -30,13 +30,13 @@ def clip_by_global_norm(gradients_dict: dict[Any, torch.Tensor], *, grad_clip: f
     """RLlib's `clip_gradients` (in place, the global norm returned), fused for grad_clip_by "global_norm"."""
     if grad_clip is None or grad_clip_by != "global_norm":
         return clip_gradients(gradients_dict, grad_clip=grad_clip, grad_clip_by=grad_clip_by)
-    gradients = [g for g in gradients_dict.values() if g is not None]
+    gradients = [g.detach() for g in gradients_dict.values() if g is not None]
     if not gradients:
         return torch.tensor(0.0)
-    norms = torch.stack(torch._foreach_norm([g.detach() for g in gradients], 2.0))
+    norms = torch.stack(torch._foreach_norm(gradients, 2.0))
     norm = torch.linalg.vector_norm(norms.nan_to_num(neginf=-10e8, posinf=10e8)).nan_to_num(neginf=-10e8, posinf=10e8)
     coefficient = torch.clamp(grad_clip / torch.clamp(norm + 1e-6, min=grad_clip), max=1.0)
-    torch._foreach_mul_([g.detach() for g in gradients], coefficient)
+    torch._foreach_mul_(gradients, coefficient)
     return norm
 
 
