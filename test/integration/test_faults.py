@@ -181,6 +181,18 @@ def test_a_deep_agents_buffer_beyond_reason_gives_one_line(master, tmp_path):
     assert not (tmp_path / "results").exists()
 
 
+def test_an_adapting_attitude_assist_with_env_workers_gives_one_line_and_writes_nothing(master, tmp_path):
+    """The assist's curriculum changes the one env of the trainer's process: two env workers are refused."""
+    config = REPO / "hopper_training" / "config" / "end_to_end_assist.yaml"
+    result = master.run([*HOPPER_TRAINING, "task:=end_to_end", "agent:=ppo", "backend:=direct", "envs:=2",
+                         f"config:={config}", f"results_dir:={tmp_path / 'results'}"], timeout=240)
+    output = result.stdout + result.stderr
+    assert result.returncode == 1, output[-3000:]
+    line = one_line(output, "attitude_assist/adapt_every (20) changes the sim's assist during the run")
+    assert str(config) in line and "envs:=1 and an agent other than rllib_ppo" in line
+    assert not (tmp_path / "results").exists()
+
+
 @pytest.mark.parametrize("launch, args, folder, expected", [
     (HOPPER_TRAINING, ["task:=residual_forward", "agent:=dqn"], "residual_forward-dqn",
      "agent dqn on MonopedResidualForward-v0: DQN needs Discrete actions, the task has Box("),

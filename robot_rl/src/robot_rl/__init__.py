@@ -32,7 +32,7 @@ from .discretiser import Discretiser
 from .envs.backends.base import Backend, Readings, SimStateError, non_finite_problem
 from .envs.backends.direct import DirectBackend
 from .envs.backends.factory import make_backend
-from .envs.base import Placement, RobotEnv, StepOutcome
+from .envs.base import Placement, RobotEnv, StepOutcome, assist_setter
 from .params import (
     MAX_COUNT,
     MAX_SEED,
@@ -147,8 +147,8 @@ __all__ = [
     "RunLockedError", "SacParams", "ScaledRewards", "ScriptedPolicy", "SimStateError", "StateKey", "StepOutcome",
     "StrPath", "TaskParams", "TaskSpec", "TrainedRun", "Trainer", "TrainingHooks", "TrainingState",
     "VectorQLearningTrainer", "VideoRecorder", "VideoRequest", "WorkerError", "WorkerRestarted", "Workers", "agent_of",
-    "aggregate", "as_env_actions", "build_model", "checked_actions", "checkpoint_of", "cluster", "connect",
-    "constant_policy", "default_initial_tilt", "default_sigint", "evaluate", "evaluation", "evaluation_main",
+    "aggregate", "as_env_actions", "assist_setter", "build_model", "checked_actions", "checkpoint_of", "cluster",
+    "connect", "constant_policy", "default_initial_tilt", "default_sigint", "evaluate", "evaluation", "evaluation_main",
     "find_agent", "find_task", "format_duration", "frame_every", "free_port", "init_ros_node", "load_yaml_file",
     "make_backend", "make_env", "make_env_workers", "make_vec_env", "make_vector_env", "moving_average",
     "non_finite_problem", "package_path", "param", "parse_scalar", "prepare_child", "random_actions",

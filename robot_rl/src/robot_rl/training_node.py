@@ -41,6 +41,7 @@ from pybullet_sim.ros.client import SimConnectionError
 from pybullet_sim.ros.shutdown import shutdown_on_signals, shutting_down
 
 from .agents.registry import DEFAULT_AGENT, AgentSpec, Trainer, find_agent
+from .envs.base import assist_setter
 from .evaluation import TrainedRun, VideoRequest, evaluate
 from .params import ParamError, Params, TaskParams, load_yaml_file, param, parse_scalar
 from .runs.ledger import TrainingHooks
@@ -259,6 +260,10 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
         return _fail(f"{node.config_file}: {error}")
     try:  # before the run folder: an agent that cannot train this task (or whose buffer cannot fit) writes nothing
         agent.check_fit(env, agent_params, f"agent {agent.name} on {task.env_id}")
+        if params.attitude_assist.adapt_every and assist_setter(env) is None:
+            raise ParamError(f"{node.config_file}: attitude_assist/adapt_every ({params.attitude_assist.adapt_every}) "
+                             f"changes the sim's assist during the run, which needs the one env in the trainer's "
+                             f"process: envs:=1 and an agent other than rllib_ppo, or adapt_every 0")
     except ParamError as error:
         _close_quietly(env)
         return _fail(str(error))

@@ -48,6 +48,7 @@ from robot_rl import (
     TaskSpec,
     TrainingHooks,
     TrainingState,
+    assist_setter,
     restored_state,
     write_bytes_atomic,
 )
@@ -210,7 +211,7 @@ class BcDaggerTrainer:
             self.resuming = (f"Resuming {run.path} after stage {len(self.rounds)} of {agent_params.stages()} "
                              f"(episode {self.state.episode}); a stage under way at the stop is collected anew")
         self.ledger = RunLedger(run, task, agent_params.episodes(), self.state, self, hooks,
-                                assist=params.attitude_assist)  # the student's stages: the assist stays
+                                assist=params.attitude_assist, set_assist=assist_setter(env))
 
     def _first_net(self) -> StudentNet:
         """The student as the run begins it: its weights drawn from the training seed alone."""

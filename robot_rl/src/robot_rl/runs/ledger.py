@@ -143,8 +143,9 @@ class RunLedger:
         if assist is not None and assist.adapt_every:
             if set_assist is None:
                 raise ValueError(f"attitude_assist/adapt_every ({assist.adapt_every}) changes the sim's assist "
-                                 f"during the run, which this trainer cannot do with {n_envs} env(s): train with "
-                                 f"envs:=1 and a Stable-Baselines3 or Q-learning agent, or set adapt_every 0")
+                                 f"during the run, which needs the one env in the trainer's process (it has "
+                                 f"{n_envs}, or they are not in it): envs:=1 and an agent other than rllib_ppo, or "
+                                 f"adapt_every 0")
             try:
                 self.curriculum = AssistCurriculum(assist, state.assist_scale, state.assist_window)
             except ValueError as error:
