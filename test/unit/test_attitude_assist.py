@@ -278,7 +278,7 @@ def test_a_ppo_run_adapts_the_assist_and_its_resume_sets_the_checkpoints_scale_b
             env.close()
 
     run, summary, log, at_start, at_end = train(4, resume=False)
-    assert summary["completed"] and at_start == (0.5, 0.025)
+    assert summary["completed"] and at_start == (0.5, 0.025) and summary["attitude_assist_scale"] == 1.0
     assert [line for line in log if line.startswith("attitude assist")] == [
         "attitude assist: scale 0.25 -> 0.5 after episode 2 (2 of the last 2 episodes fell)",
         "attitude assist: scale 0.5 -> 1 after episode 4 (2 of the last 2 episodes fell)"]

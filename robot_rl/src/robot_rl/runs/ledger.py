@@ -297,7 +297,8 @@ class RunLedger:
                    "metrics_last_100": metrics, "headline_metric": self.task.headline_metric,
                    "env_steps": state.env_steps, "sim_time_s": state.sim_time, "wall_time_s": state.wall_time,
                    "env_steps_per_s": state.env_steps / state.wall_time if state.wall_time > 0 else None,
-                   "completed": stopped is None, "stopped": stopped}
+                   "completed": stopped is None, "stopped": stopped,
+                   **({} if self.curriculum is None else {"attitude_assist_scale": self.curriculum.scale})}
         self.run.write_summary(summary)
         for line in self.learner.closing_lines(summary, last):
             self.log_episode(line)  # the tutorial's table row and scores: with the EP: lines
