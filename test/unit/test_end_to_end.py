@@ -68,7 +68,7 @@ def test_the_reward_terms_on_hand_made_values():
     still = np.zeros(3)
     upright = reward_terms(p, 0.0, None, still, still)
     assert upright == {"alive": p.alive_reward, "upright": p.upright_weight, "hop": 0.0, "action_rate": 0.0,
-                       "speed": 0.0}
+                       "speed": 0.0, "lateral": 0.0}
     leaning = reward_terms(p, 0.3, None, still, still)
     assert leaning["upright"] == pytest.approx(p.upright_weight * math.exp(-0.09 / p.upright_scale))
     assert reward_terms(p, 0.0, 0.1, still, still)["hop"] == pytest.approx(p.hop_weight * 0.1)
@@ -79,6 +79,9 @@ def test_the_reward_terms_on_hand_made_values():
     forward = p.with_changes("test", target_speed=0.4, speed_weight=2.0)
     assert reward_terms(forward, 0.0, None, still, still, 0.4)["speed"] == 0.0
     assert reward_terms(forward, 0.0, None, still, still, 0.1)["speed"] == pytest.approx(-2.0 * 0.09)
+    assert reward_terms(p, 0.0, None, still, still, 0.0, 0.5)["lateral"] == 0.0, "in place (weight 0) drift is free"
+    drifting = reward_terms(p.with_changes("test", lateral_weight=1.5), 0.0, None, still, still, 0.0, -0.4)
+    assert drifting["lateral"] == pytest.approx(-1.5 * 0.16) and drifting["speed"] == 0.0
     assert tilt_angle(0.3, 0.0) == pytest.approx(0.3) and tilt_angle(0.2, 0.2) > 0.2
 
 

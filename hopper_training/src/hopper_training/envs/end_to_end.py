@@ -27,6 +27,8 @@ Reward: the sum of the terms, each in info as reward_<term> (reward_terms below;
     action_rate  -action_rate_weight x ||a_t - a_(t-1)||^2: chattering targets cost
     speed        -speed_weight x (v_x - target_speed)^2, v_x the base's velocity along world +x (m/s): hopping at
                  the commanded speed (0 weight in end_to_end.yaml: in place; end_to_end_forward.yaml: 0.4 m/s)
+    lateral      -lateral_weight x v_y^2, v_y the base's velocity along world +y (m/s): no drift sideways (0 weight
+                 but in end_to_end_assist.yaml, where an assisted policy would otherwise run off sideways)
     fall         done_reward, alone, on the step that ends the episode by a fall (a fixed penalty: nothing
                  pays for falling far or falling late)
 Terminated: base height outside [min_height, max_height), or abs(roll) or abs(pitch) >= max_incl (0.6 rad).
@@ -64,6 +66,7 @@ class EndToEndParams(MonopedParams):
     target_speed: float = param(low=-1.0, high=1.0, default=0.0,
                                 doc="m/s along world +x to hop at: the speed term's target and the teacher's command")
     speed_weight: float = param(low=0.0, default=0.0, doc="penalty weight of (v_x - target_speed)^2, m/s world x")
+    lateral_weight: float = param(low=0.0, default=0.0, doc="penalty weight of v_y^2, m/s world y")
     observe_yaw: bool = param(default=False, doc="the base's yaw (cos, sin) in the observation: the world's +x")
 
 
@@ -81,14 +84,15 @@ def tilt_angle(roll: float, pitch: float) -> float:
 
 
 def reward_terms(p: EndToEndParams, tilt: float, flight_s: float | None, action: np.ndarray,
-                 last_action: np.ndarray, speed_x: float = 0.0) -> dict[str, float]:
+                 last_action: np.ndarray, speed_x: float = 0.0, speed_y: float = 0.0) -> dict[str, float]:
     """The terms of a step upright: `tilt` (rad from vertical), `flight_s` the flight that ended with this step's
-    touchdown (None: no touchdown this step), the action and the one before, the base's speed along world +x."""
+    touchdown (None: no touchdown this step), the action and the one before, the base's speed along world +x and
+    +y."""
     hop = 0.0 if flight_s is None else p.hop_weight * min(flight_s, p.hop_cap_s)
     change = np.asarray(action, np.float64) - np.asarray(last_action, np.float64)
     return {"alive": p.alive_reward, "upright": p.upright_weight * math.exp(-tilt * tilt / p.upright_scale),
             "hop": hop, "action_rate": -p.action_rate_weight * float(change @ change),
-            "speed": -p.speed_weight * (speed_x - p.target_speed) ** 2}
+            "speed": -p.speed_weight * (speed_x - p.target_speed) ** 2, "lateral": -p.lateral_weight * speed_y ** 2}
 
 
 def frame(readings: Readings) -> np.ndarray:
@@ -155,5 +159,5 @@ class MonopedEndToEndEnv(MonopedBaseEnv):
         if fell:
             return {"fall": p.done_reward}, True, info
         terms = reward_terms(p, tilt_angle(roll, pitch), flight_s, self.action, self.last_action,
-                             odometry.linear_velocity[0])
+                             odometry.linear_velocity[0], odometry.linear_velocity[1])
         return terms, False, info
