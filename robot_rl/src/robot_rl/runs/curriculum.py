@@ -27,11 +27,6 @@ class AssistCurriculum:
             raise ValueError(f"the attitude assist's state (scale {scale!r}, window {window!r}) does not fit "
                              f"its params (adapt_every {assist.adapt_every})")
 
-    @property
-    def gains(self) -> tuple[float, float]:
-        """The sim's stiffness (N m/rad) and damping (N m s/rad) at the current scale."""
-        return self.scale * self.assist.stiffness, self.scale * self.assist.damping
-
     def episode_ended(self, fell: bool) -> bool:
         """Count an episode; True when the scale changed."""
         assist = self.assist
