@@ -59,8 +59,9 @@ def test_backend_direct_trains_in_process_with_no_sim_node(tmp_path):
     assert "Training complete: 3 episodes" in training.stdout, training.stdout[-4000:]
     assert "with bc_dagger, 3 episodes (as agent bc_dagger's params count them; nepisodes is not used)" in \
         training.stdout, "the run's own budget, not the task's nepisodes (200)"
-    assert "train further: ./ws run hopper task:=end_to_end agent:=bc_dagger agent_config:=FILE (a new run" in \
-        training.stdout and "nepisodes:=6" not in training.stdout, training.stdout[-2000:]
+    assert f"train further: ./ws run hopper task:=end_to_end agent:=bc_dagger backend:=direct " \
+        f"results_dir:={tmp_path}/results agent_config:=FILE (a new run" in training.stdout \
+        and "nepisodes:=6" not in training.stdout, training.stdout[-2000:]
     run = tmp_path / "results" / "end_to_end-bc_dagger" / "direct"
     for name in ("params.yaml", "episodes.csv", "agent.json", "student.npz", "student.json", "summary.json",
                  "learning_curve.png"):

@@ -64,7 +64,8 @@ COMMANDS = [(page, words) for page in PAGES for words in command_lines(page)]
 def launch_args(package: str, launch_file: str) -> set[str]:
     path = Path(rospkg.RosPack().get_path(package)) / "launch" / launch_file
     assert path.is_file(), f"{package}/launch/{launch_file} does not exist"
-    return {str(arg.get("name")) for arg in ElementTree.parse(path).getroot().iter("arg")}
+    # an <arg value=...> is a constant of the file, not an argument roslaunch takes
+    return {str(arg.get("name")) for arg in ElementTree.parse(path).getroot().iter("arg") if arg.get("value") is None}
 
 
 def check_script(package: str, script: str) -> None:

@@ -82,12 +82,15 @@ def test_a_run_ends_with_its_block_and_a_resume_of_it_says_it_is_complete(tmp_pa
     assert block[2] == "  evaluate it:   ./ws exec rosrun moving_cube_training evaluate.py --run " \
                        "results/moving_cube/first"
     assert block[3].startswith("  play it:       ./ws demo cube run:=results/moving_cube/first (or open "), block
-    assert block[4] == "  train further: ./ws run cube resume:=true run:=first nepisodes:=6"
+    # the run's own config and results folder: a resume without them would not find the run
+    assert block[4] == f"  train further: ./ws run cube config:={config} results_dir:={tmp_path}/results " \
+                       "resume:=true run:=first nepisodes:=6"
 
     resumed, output = ws(tmp_path, "run", "run:=first", f"config:={config}", "results_dir:=results", "resume:=true")
     assert resumed.returncode == 0, output[-3000:]
     assert "Run results/moving_cube/first is complete (3 of 3 episodes): nothing to resume. To train it further, " \
-           "give more episodes: ./ws run cube resume:=true run:=first nepisodes:=6" in output, output[-3000:]
+           f"give more episodes: ./ws run cube config:={config} results_dir:={tmp_path}/results resume:=true " \
+           "run:=first nepisodes:=6" in output, output[-3000:]
     assert "Training complete" not in output and "Resuming" not in output, output[-3000:]
 
 
@@ -97,4 +100,4 @@ def test_the_cube_s_default_run_prints_at_most_40_lines(tmp_path):
     assert result.returncode == 0, output[-3000:]
     lines = output.splitlines()
     assert len(lines) <= 40, output
-    assert "train further: ./ws run cube resume:=true run:=" in lines[-1], output
+    assert f"train further: ./ws run cube results_dir:={tmp_path}/results resume:=true run:=" in lines[-1], output

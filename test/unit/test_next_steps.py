@@ -19,9 +19,10 @@ def not_under_ws_run(monkeypatch):
     monkeypatch.delenv(WS_RUN_VARIABLE, raising=False)
 
 
-def context(agent, own_episodes=False):
+def context(agent, own_episodes=False, given=()):
     return RunContext(package="hopper_training", task="end_to_end", several_tasks=True, agent=agent,
-                      default_agent="qlearn", run_path=Path("/runs/end_to_end-x/s0"), own_episodes=own_episodes)
+                      default_agent="qlearn", run_path=Path("/runs/end_to_end-x/s0"), own_episodes=own_episodes,
+                      given=given)
 
 
 def summary(episodes):
@@ -77,3 +78,19 @@ def test_a_run_is_complete_by_its_own_budget(tmp_path):
     run.summary_json.write_text(json.dumps(summary(85)))
     assert _completed_summary(run, 85, 0) is not None, "bc_dagger's 85 episodes are its whole budget"
     assert _completed_summary(run, 200, 0) is None, "the task's 200 would be more to train"
+
+
+def test_the_hint_repeats_the_launch_arguments_the_run_was_given():
+    """A run started with its own config, agent params, backend or results folder is trained further with them: the
+    resume would otherwise look for the run under the default results folder, or go on with the default config."""
+    given = ("config:=/cfg/end_to_end_assist.yaml", "agent_config:=/cfg/ppo.yaml", "backend:=direct",
+             "results_dir:=runs")
+    budgeted = {**summary(1849), "nepisodes": 1000000, "max_steps": 3000000}
+    assert end_block(context("ppo", given=given), budgeted, None)[-1] == \
+        "  train further: roslaunch hopper_training main.launch task:=end_to_end agent:=ppo " \
+        "config:=/cfg/end_to_end_assist.yaml agent_config:=/cfg/ppo.yaml backend:=direct results_dir:=runs " \
+        "resume:=true run:=s0 nepisodes:=1000000 max_steps:=6000000"
+    own = end_block(context("bc_dagger", own_episodes=True, given=given), summary(85), None)[-1]
+    assert own.startswith("  train further: roslaunch hopper_training main.launch task:=end_to_end agent:=bc_dagger "
+                          "config:=/cfg/end_to_end_assist.yaml backend:=direct results_dir:=runs agent_config:=FILE "
+                          "(a new run"), "a new run's agent params replace the given ones"

@@ -6,6 +6,8 @@ from pathlib import Path
 import pytest
 
 from robot_rl import MAX_ENVS_PER_CORE, NodeParams, ParamError
+from robot_rl.runs.next_steps import WS_RESULTS_VARIABLE
+from robot_rl.training_node import _given_launch_args
 
 
 def test_defaults():
@@ -33,3 +35,21 @@ def test_a_results_dir_is_resolved_where_roslaunch_ran(tmp_path, monkeypatch, re
     monkeypatch.setenv("HOME", str(tmp_path / "home"))
     node = NodeParams.from_mapping({"results_dir": results_dir, "launch_dir": str(tmp_path / "launched")}, "/node")
     assert node.results_root == (Path(expected) if expected.startswith("/") else tmp_path / expected)
+
+
+def test_the_launch_arguments_given_are_those_not_their_defaults(tmp_path, monkeypatch):
+    """What the end block's "train further" command repeats (robot_rl.training_node._given_launch_args)."""
+    monkeypatch.delenv(WS_RESULTS_VARIABLE, raising=False)
+    default, other = tmp_path / "end_to_end.yaml", tmp_path / "end_to_end_assist.yaml"
+    default.write_text("{}\n")
+    other.write_text("{}\n")
+    plain = NodeParams.from_mapping({"config_file": str(default), "default_config": str(default)}, "/node")
+    assert _given_launch_args(plain) == ()
+    assert _given_launch_args(NodeParams.from_mapping({}, "/node")) == (), "params from rosparam alone: no file"
+    given = NodeParams.from_mapping({"config_file": str(other), "default_config": str(default),
+                                     "agent_config": "ppo.yaml", "backend": "direct", "envs": 2, "cluster": "ray",
+                                     "results_dir": "runs"}, "/node")
+    assert _given_launch_args(given) == (f"config:={other}", "agent_config:=ppo.yaml", "backend:=direct", "envs:=2",
+                                         "cluster:=ray", "results_dir:=runs")
+    monkeypatch.setenv(WS_RESULTS_VARIABLE, "runs")
+    assert "results_dir:=runs" not in _given_launch_args(given), "./ws run's own default, set by it, not repeated"

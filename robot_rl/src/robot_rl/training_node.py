@@ -44,8 +44,9 @@ from .agents.registry import DEFAULT_AGENT, AgentSpec, Trainer, find_agent
 from .envs.base import assist_setter
 from .evaluation import TrainedRun, VideoRequest, evaluate
 from .params import ParamError, Params, TaskParams, load_yaml_file, param, parse_scalar
+from .runs.curriculum import needs_the_env_in_process
 from .runs.ledger import TrainingHooks
-from .runs.next_steps import RunContext, complete_lines, end_block, start_line
+from .runs.next_steps import WS_RESULTS_VARIABLE, RunContext, complete_lines, end_block, start_line
 from .runs.results import RunDirectory
 from .task import TaskSpec, find_task, make_env
 from .workers.base import WorkerError, stop_waits_when
@@ -76,6 +77,7 @@ class NodeParams(Params):
 
     task: str = param(default="", doc="the task to train; empty: the package's first")
     config_file: str = param(default="rosparam", doc="the task's YAML (named in errors)")
+    default_config: str = param(default="", doc="the robot's YAML when none is given (main.launch's)")
     results_dir: str = param(default="", doc="where runs go; empty: $ROS_HOME/training_results")
     launch_dir: str = param(default="", doc="the folder roslaunch ran in: a relative results_dir is under it")
     run: str = param(default="", doc="the run's name; empty: the UTC time (new) or latest (resume)")
@@ -132,6 +134,26 @@ def _read_params(task: TaskSpec[Any], node: NodeParams) -> TaskParams:
     params = task.params_type.from_mapping(rospy.get_param(namespace, {}), f"{config_file} ({namespace.rstrip('/')}/)")
     overrides = _private(("nepisodes", "seed"))
     return params.with_changes(rospy.get_name(), **overrides) if overrides else params
+
+
+def _given_launch_args(node: NodeParams) -> tuple[str, ...]:
+    """The launch arguments this run was started with, other than their defaults, that training it further needs
+    again: its config, agent_config, backend, envs, cluster and results_dir (as given; not ./ws run's default)."""
+    given = []
+    if Path(node.config_file).is_file() and not (
+            node.default_config and Path(node.config_file).resolve() == Path(node.default_config).resolve()):
+        given.append(f"config:={node.config_file}")
+    if node.agent_config:
+        given.append(f"agent_config:={node.agent_config}")
+    if node.backend != "ros":
+        given.append(f"backend:={node.backend}")
+    if node.envs != 1:
+        given.append(f"envs:={node.envs}")
+    if node.cluster:
+        given.append(f"cluster:={node.cluster}")
+    if node.results_dir and node.results_dir != os.environ.get(WS_RESULTS_VARIABLE):
+        given.append(f"results_dir:={node.results_dir}")
+    return tuple(given)
 
 
 def _close_quietly(env: Any) -> None:
@@ -244,7 +266,7 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     nepisodes = params.nepisodes if own_episodes is None else own_episodes
     context = RunContext(package=task.package, task=task.name, several_tasks=len(tasks) > 1, agent=node.agent,
                          default_agent=DEFAULT_AGENT, run_path=Path(), launch_dir=node.launch_dir,
-                         own_episodes=own_episodes is not None)
+                         own_episodes=own_episodes is not None, given=_given_launch_args(node))
     try:
         env = _make_env(task, params, agent, node.envs, node.timeout, node.cluster, node.backend)
     except (SimConnectionError, WorkerError, OSError, ClusterError) as error:  # OSError: e.g. a master refusing
@@ -261,9 +283,7 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
     try:  # before the run folder: an agent that cannot train this task (or whose buffer cannot fit) writes nothing
         agent.check_fit(env, agent_params, f"agent {agent.name} on {task.env_id}")
         if params.attitude_assist.adapt_every and assist_setter(env) is None:
-            raise ParamError(f"{node.config_file}: attitude_assist/adapt_every ({params.attitude_assist.adapt_every}) "
-                             f"changes the sim's assist during the run, which needs the one env in the trainer's "
-                             f"process: envs:=1 and an agent other than rllib_ppo, or adapt_every 0")
+            raise ParamError(f"{node.config_file}: {needs_the_env_in_process(params.attitude_assist)}")
     except ParamError as error:
         _close_quietly(env)
         return _fail(str(error))

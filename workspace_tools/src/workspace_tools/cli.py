@@ -61,6 +61,7 @@ PRIVATE_MASTER = "private-master"  # a master on a free port unless the caller s
 RESULTS = REPO / "training_results"
 DEMOS = REPO / "demos"  # ./ws demo's videos (ignored by git)
 WS_RUN_VARIABLE = "WS_RUN"  # robot_rl.runs.next_steps's (not imported: ./ws starts without numpy)
+WS_RESULTS_VARIABLE = "WS_RUN_RESULTS"  # next_steps's too: ./ws run's default results_dir, not repeated in its hints
 CALLER_MASTER = "WS_CALLER_MASTER"  # ws sets it to the caller's ROS_MASTER_URI ("" if none): the caller's wins
 # The robots' rviz configs (package, file), for ./ws rviz on a run that is going on (robot_rl's watch.launch).
 RVIZ_CONFIGS = {"cube": ("moving_cube_description", "rviz/moving_cube.rviz"),
@@ -154,6 +155,7 @@ def _run_master(command: str, robot: str) -> None:
         log(line)
     os.environ[RECORD_VARIABLE] = json.dumps({"folder": str(runs_folder()), "command": command, "robot": robot})
     os.environ[WS_RUN_VARIABLE] = f"./ws run {robot}"  # the training node's end block gives ./ws commands
+    os.environ[WS_RESULTS_VARIABLE] = str(RESULTS)
 
 
 def _join_run() -> LiveRun | None:

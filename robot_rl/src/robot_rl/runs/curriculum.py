@@ -13,6 +13,12 @@ from __future__ import annotations
 from ..params import AttitudeAssist
 
 
+def needs_the_env_in_process(assist: AttitudeAssist) -> str:
+    """Why a run whose assist adapts cannot train without a setter for it (its envs in other processes)."""
+    return (f"attitude_assist/adapt_every ({assist.adapt_every}) changes the sim's assist during the run, which needs "
+            f"the one env in the trainer's process: envs:=1 and an agent other than rllib_ppo, or adapt_every 0")
+
+
 class AssistCurriculum:
     """The scale of `assist` (its params), adapted from the episodes' outcomes; `scale` and `window` (1: the
     episode fell) are what a checkpoint keeps."""

@@ -21,7 +21,7 @@ from typing import Any, Protocol
 
 from ..params import AttitudeAssist
 from ..task import Episode, MetricValue, TaskSpec
-from .curriculum import AssistCurriculum
+from .curriculum import AssistCurriculum, needs_the_env_in_process
 from .results import EpisodeRecord, RunDirectory, aggregate
 
 PROGRESS_WINDOW = 50   # episodes the progress line's headline metric is averaged over
@@ -142,10 +142,7 @@ class RunLedger:
         self.curriculum: AssistCurriculum | None = None
         if assist is not None and assist.adapt_every:
             if set_assist is None:
-                raise ValueError(f"attitude_assist/adapt_every ({assist.adapt_every}) changes the sim's assist "
-                                 f"during the run, which needs the one env in the trainer's process (it has "
-                                 f"{n_envs}, or they are not in it): envs:=1 and an agent other than rllib_ppo, or "
-                                 f"adapt_every 0")
+                raise ValueError(needs_the_env_in_process(assist))
             try:
                 self.curriculum = AssistCurriculum(assist, state.assist_scale, state.assist_window)
             except ValueError as error:

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 WS_RUN_VARIABLE = "WS_RUN"   # "./ws run ROBOT", set by ./ws run for its nodes
+WS_RESULTS_VARIABLE = "WS_RUN_RESULTS"  # ./ws run's default results_dir, set by it for its nodes
 
 
 @dataclass(frozen=True)
@@ -28,6 +29,7 @@ class RunContext:
     run_path: Path
     launch_dir: str = ""       # where the command ran: paths are shown relative to it when under it
     own_episodes: bool = False  # the agent trains its params' count of episodes (bc_dagger), not nepisodes
+    given: tuple[str, ...] = ()  # the run's launch arguments ("config:=FILE", ...) a command to train it repeats
 
     def shown(self, path: Path) -> str:
         if self.launch_dir:
@@ -44,10 +46,13 @@ class RunContext:
         return "./ws exec " if self._ws() else ""
 
     def train_command(self, *args: str) -> str:
-        """The command that trains this run's task with this agent, and `args`."""
+        """The command that trains this run's task with this agent, its given launch arguments but those `args`
+        name, and `args`."""
         base = self._ws() or f"roslaunch {self.package} main.launch"
+        named = {arg.split(":=", 1)[0] for arg in args}
         words = [base, *([f"task:={self.task}"] if self.several_tasks else []),
-                 *([f"agent:={self.agent}"] if self.agent != self.default_agent else []), *args]
+                 *([f"agent:={self.agent}"] if self.agent != self.default_agent else []),
+                 *(arg for arg in self.given if arg.split(":=", 1)[0] not in named), *args]
         return " ".join(words)
 
     def further_command(self, episodes: int, nepisodes: int = 0, max_steps: int = 0) -> str:
