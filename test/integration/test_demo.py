@@ -38,11 +38,13 @@ def test_the_shipped_policy_plays_into_a_video_and_does_its_task(tmp_path, args,
     assert (tmp_path / "out.mp4").stat().st_size > 0
 
 
-@pytest.mark.parametrize("policy, speed", [("end_to_end", None), ("end_to_end_forward", 0.35)])
+@pytest.mark.parametrize("policy, speed", [("end_to_end", None), ("end_to_end_forward", 0.35),
+                                           ("end_to_end_scratch", None)])
 def test_an_end_to_end_student_hops_10_s_with_the_controller_refused(tmp_path, policy, speed):
     """Issue 39: the shipped end-to-end policies play alone. Any call into hopper_training.controller raises in the
-    demo's processes; the student stays up the whole 10 s and hops at least 20 times (the forward one at 0.35 m/s
-    or more along +x, for 0.4 commanded to its teacher)."""
+    demo's processes; the policy stays up the whole 10 s and hops at least 20 times (the forward one at 0.35 m/s
+    or more along +x, for 0.4 commanded to its teacher). end_to_end_scratch was trained from scratch with the
+    attitude assist, which the demo does not apply."""
     log = tmp_path / "refused.log"
     result = demo("hopper", f"policy:={policy}", "out.mp4", cwd=tmp_path, env=refusing_controller(log))
     assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
@@ -71,7 +73,8 @@ def test_the_refusing_hook_really_refuses_the_controller(tmp_path):
 def test_an_unknown_policy_gets_one_line_naming_the_shipped_ones(tmp_path):
     result = demo("hopper", "policy:=nope", cwd=tmp_path)
     assert result.returncode != 0 and "no shipped policy 'nope' for hopper (known: demo, end_to_end, " \
-        "end_to_end_forward, residual_forward_sac, residual_in_place_sac)" in result.stderr, result.stderr
+        "end_to_end_forward, end_to_end_scratch, residual_forward_sac, residual_in_place_sac)" \
+        in result.stderr, result.stderr
     assert not list(tmp_path.iterdir())
 
 
