@@ -81,6 +81,20 @@ def test_a_deep_policy_plays_only_with_the_model_zip_its_checkpoint_recorded(tmp
 
 
 @pytest.mark.deep
+def test_a_run_caught_between_its_checkpoint_and_the_rename_plays_the_recorded_model(tmp_path, capsys):
+    """A trainer writes model.partial.zip, then agent.json with its digest, then renames it model.zip: evaluate.py
+    reading in between plays the partial file, the model agent.json names (not the older model.zip)."""
+    policy = copied(tmp_path)
+    (policy / "model.zip").rename(policy / "model.partial.zip")
+    shutil.copyfile(SHIPPED / "residual_forward_sac" / "model.zip", policy / "model.zip")  # the older checkpoint's
+    code, out, err = evaluate(capsys, "--run", str(policy), "--episodes", "1", "--horizon-s", "0.2")
+    assert code == 0 and json.loads(out.splitlines()[-1])["episodes"] == 1, err
+    (policy / "model.partial.zip").unlink()
+    code, out, err = evaluate(capsys, "--run", str(policy), "--episodes", "1", "--horizon-s", "0.2")
+    assert code == 1 and "not the model.zip" in one_line(err), "the older model alone does not play"
+
+
+@pytest.mark.deep
 def test_the_shipped_deep_policy_with_its_digest_plays(tmp_path, capsys):
     code, out, err = evaluate(capsys, "--run", str(copied(tmp_path)), "--episodes", "1", "--horizon-s", "0.2")
     assert code == 0 and json.loads(out.splitlines()[-1])["episodes"] == 1, err
