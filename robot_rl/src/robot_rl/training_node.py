@@ -143,14 +143,9 @@ def _given_launch_args(node: NodeParams) -> tuple[str, ...]:
     if Path(node.config_file).is_file() and not (
             node.default_config and Path(node.config_file).resolve() == Path(node.default_config).resolve()):
         given.append(f"config:={node.config_file}")
-    if node.agent_config:
-        given.append(f"agent_config:={node.agent_config}")
-    if node.backend != "ros":
-        given.append(f"backend:={node.backend}")
-    if node.envs != 1:
-        given.append(f"envs:={node.envs}")
-    if node.cluster:
-        given.append(f"cluster:={node.cluster}")
+    defaults = {field.name: field.default for field in dataclasses.fields(NodeParams)}
+    given += [f"{name}:={getattr(node, name)}" for name in ("agent_config", "backend", "envs", "cluster")
+              if getattr(node, name) != defaults[name]]
     if node.results_dir and node.results_dir != os.environ.get(WS_RESULTS_VARIABLE):
         given.append(f"results_dir:={node.results_dir}")
     return tuple(given)
