@@ -117,6 +117,8 @@ def test_the_params_refuse_a_curriculum_of_no_assist_and_thresholds_that_cannot_
         assisted(20.0, 1.0, adapt_every=20, raise_at_least=5)
     with pytest.raises(ParamError, match="factor"):
         assisted(20.0, 1.0, factor=1.0)
+    with pytest.raises(ParamError, match="'attitude_assist/free_share' \\(0.25\\) mixes .* it needs adapt_every > 0"):
+        assisted(20.0, 1.0, free_share=0.25)
     assert not END_TO_END.default_params().attitude_assist.active
 
 
@@ -145,6 +147,18 @@ def test_the_scale_goes_down_while_few_fall_up_when_many_do_and_stays_between():
 def test_under_the_floor_the_scale_is_0_and_a_raise_starts_again_from_the_floor():
     curriculum = AssistCurriculum(ADAPT, scale=0.15)
     assert windows(curriculum, 0, 0, 3) == [(0.0, True), (0.0, False), (0.2, True)]
+
+
+def test_free_episodes_are_the_share_asked_for_spread_evenly_and_do_not_count_while_there_is_an_assist():
+    curriculum = AssistCurriculum(AttitudeAssist(stiffness=20.0, adapt_every=4, free_share=0.25))
+    free = [curriculum.free(episode) for episode in range(1, 1001)]
+    assert abs(sum(free) - 250) <= 1 and all(1 <= sum(free[i:i + 8]) <= 3 for i in range(0, 1000, 8))
+    assert [curriculum.scale_of(episode) for episode in range(1, 9)] == [1.0 * (not f) for f in free[:8]]
+    assert not AssistCurriculum(ADAPT).free(1) and not any(map(AssistCurriculum(ADAPT).free, range(1, 100)))
+    assert not any(curriculum.episode_ended(True, free=True) for _ in range(10)) and curriculum.window == []
+    curriculum.scale = 0.0  # no assist left: a free episode is like any other, its fall counts
+    curriculum.episode_ended(True, free=True)
+    assert curriculum.window == [1]
 
 
 def test_a_fixed_assist_never_changes_and_a_state_that_does_not_fit_is_refused():
@@ -214,6 +228,21 @@ def test_the_ledger_hands_each_new_scale_to_the_env_logs_it_and_a_resume_goes_on
     for fell in (0, 0):  # the window under way ends with 2 of 4 fallen: no change
         ended(resumed, fell)
     assert told == [1.0] and resumed.state.assist_window == []
+
+
+def test_the_ledger_gives_free_episodes_no_assist_and_adapts_on_the_assisted_ones_alone(tmp_path):
+    run = RunDirectory.create(tmp_path, "moving_cube", {}, ONE_DISK_WALK.metric_names, "run")
+    assist = AttitudeAssist(**{**ADAPT.to_mapping(), "free_share": 0.25})
+    curriculum, told, log = AssistCurriculum(assist), [], []
+    ledger = ledger_for(run, TrainingState(), assist, told.append, log)
+    free = [curriculum.free(episode) for episode in range(1, 9)]
+    assert free == [False, True, False, False, True, False, False, False]
+    for fell in free:  # every free episode falls, every assisted one keeps up: the scale goes down
+        ended(ledger, fell)
+    # episodes 2 and 5 free (0); the window of the assisted episodes 1, 3, 4 and 6 ends at 6: 0.5 from 7 on
+    assert told == [1.0, 0.0, 1.0, 0.0, 1.0, 0.5]
+    assert "attitude assist: scale 1 -> 0.5 after episode 6 (0 of the last 4 assisted episodes fell)" in log
+    assert ledger.state.assist_window == [0, 0]  # episodes 7 and 8
 
 
 def test_a_trainer_that_cannot_change_its_envs_assist_is_refused_before_it_trains(tmp_path):

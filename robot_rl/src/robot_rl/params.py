@@ -202,6 +202,9 @@ class AttitudeAssist(Params):
     factor: float = param(low=0.0, low_open=True, high=1.0, high_open=True, default=0.7,
                           doc="lower: scale x factor; raise: scale / factor (at most 1)")
     floor: float = param(low=0.0, high=1.0, default=0.01, doc="a lowered scale under this becomes 0")
+    free_share: float = param(low=0.0, high=1.0, high_open=True, default=0.0,
+                              doc="the share of episodes trained with no assist whatever the scale, spread evenly "
+                                  "(they do not count in the window while the scale is above 0)")
 
     @property
     def active(self) -> bool:
@@ -244,6 +247,9 @@ class TaskParams(Params):
         if assist.adapt_every and not assist.active:
             raise ParamError(f"{source}: parameter 'attitude_assist/adapt_every' ({assist.adapt_every}) adapts an "
                              f"assist that is off: give it a stiffness or a damping")
+        if assist.free_share and not assist.adapt_every:
+            raise ParamError(f"{source}: parameter 'attitude_assist/free_share' ({assist.free_share}) mixes episodes "
+                             f"without the assist into a curriculum: it needs adapt_every > 0")
         if assist.adapt_every and not assist.lower_at_most < assist.raise_at_least <= assist.adapt_every:
             raise ParamError(f"{source}: parameter 'attitude_assist': lower_at_most ({assist.lower_at_most}) < "
                              f"raise_at_least ({assist.raise_at_least}) <= adapt_every ({assist.adapt_every}) "

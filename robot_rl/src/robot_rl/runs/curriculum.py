@@ -7,10 +7,19 @@ when raise_at_least or more did; an episode fell when the task terminated it (a 
 scale and the outcomes of the window under way are part of the run's TrainingState, so a resumed run goes on
 where its checkpoint left the curriculum. Pure: the trainer hands the scale to its env (RobotEnv's
 set_assist_scale).
+
+With free_share > 0, that share of the episodes trains with no assist at all, whatever the scale: the robot the
+targets judge stays in the data at every stage. Which episodes are free follows from their number alone (spread
+evenly: the fractional part of number x the golden ratio under free_share), so a resumed run draws the same. While
+the scale is above 0 a free episode does not count in the window: the scale follows the assisted episodes.
 """
 from __future__ import annotations
 
+import math
+
 from ..params import AttitudeAssist
+
+GOLDEN_RATIO_FRACTION = (math.sqrt(5.0) - 1.0) / 2.0  # n x this mod 1 spreads any share of n evenly
 
 
 def needs_the_env_in_process(assist: AttitudeAssist) -> str:
@@ -33,10 +42,18 @@ class AssistCurriculum:
             raise ValueError(f"the attitude assist's state (scale {scale!r}, window {window!r}) does not fit "
                              f"its params (adapt_every {assist.adapt_every})")
 
-    def episode_ended(self, fell: bool) -> bool:
-        """Count an episode; True when the scale changed."""
+    def free(self, episode: int) -> bool:
+        """Whether the run's episode number `episode` (1: its first) trains without the assist."""
+        return (episode * GOLDEN_RATIO_FRACTION) % 1.0 < self.assist.free_share
+
+    def scale_of(self, episode: int) -> float:
+        """The scale episode number `episode` trains with: 0 if it is free, else the curriculum's."""
+        return 0.0 if self.free(episode) else self.scale
+
+    def episode_ended(self, fell: bool, free: bool = False) -> bool:
+        """Count an episode (`free`: it had no assist); True when the scale changed."""
         assist = self.assist
-        if not assist.adapt_every:
+        if not assist.adapt_every or (free and self.scale > 0.0):
             return False
         self.window.append(int(fell))
         if len(self.window) < assist.adapt_every:

@@ -126,7 +126,8 @@ class RunLedger:
     `count_env_steps`, if given, counts the env steps itself (SB3's num_timesteps, which include the
     steps of episodes under way); otherwise they are the steps of the episodes that ended. With a
     budget of `max_steps` env steps, the progress line counts steps instead of episodes. `assist`: the run's
-    attitude assist params; when they adapt, `set_assist` hands a new scale to the trainer's env (ValueError when
+    attitude assist params; when they adapt, `set_assist` hands each new scale (0 for an episode the curriculum
+    trains free) to the trainer's env (ValueError when
     the trainer has none to give: its envs cannot change the assist during a run)."""
 
     def __init__(self, run: RunDirectory, task: TaskSpec[Any], nepisodes: int, state: TrainingState, learner: Learner,
@@ -140,6 +141,7 @@ class RunLedger:
         self.n_envs, self.count_env_steps, self.max_steps = n_envs, count_env_steps, max_steps
         self.episodes_per_env = [0] * n_envs
         self.curriculum: AssistCurriculum | None = None
+        self._assist_given: float | None = None  # the scale last handed to the env
         if assist is not None and assist.adapt_every:
             if set_assist is None:
                 raise ValueError(needs_the_env_in_process(assist))
@@ -159,7 +161,8 @@ class RunLedger:
         self.headline: list[MetricValue] = [r.metrics.get(self.task.headline_metric, math.nan) for r in recent]
         self.recent_lengths = [r.steps for r in recent[-ETA_WINDOW:]]
         if self.curriculum is not None:  # a resumed run's scale, where its checkpoint left it
-            self.set_assist(self.curriculum.scale)
+            self._assist_given = self.curriculum.scale_of(self.state.episode + 1)
+            self.set_assist(self._assist_given)
 
     def episode_done(self, episode: Episode, highest: float, epsilon: float, env_index: int = 0) -> None:
         """Count an ended episode of env `env_index` (`highest`: its highest return so far, `epsilon` its
@@ -194,12 +197,15 @@ class RunLedger:
         curriculum = self.curriculum
         if curriculum is None:
             return
-        previous = curriculum.scale
-        if curriculum.episode_ended(fell):
-            self.set_assist(curriculum.scale)
+        previous, ended = curriculum.scale, self.state.episode
+        if curriculum.episode_ended(fell, curriculum.free(ended)):
             self.log(f"attitude assist: scale {previous:.4g} -> {curriculum.scale:.4g} after episode "
-                     f"{self.state.episode} ({curriculum.last_falls} of the last {curriculum.assist.adapt_every} "
-                     f"episodes fell)")
+                     f"{ended} ({curriculum.last_falls} of the last {curriculum.assist.adapt_every} "
+                     f"{'assisted ' if curriculum.assist.free_share else ''}episodes fell)")
+        given = curriculum.scale_of(ended + 1)
+        if given != self._assist_given:
+            self.set_assist(given)
+            self._assist_given = given
         self.state.assist_scale, self.state.assist_window = curriculum.scale, list(curriculum.window)
 
     def checkpoint_due(self) -> bool:
