@@ -22,6 +22,11 @@ from ..params import AttitudeAssist
 GOLDEN_RATIO_FRACTION = (math.sqrt(5.0) - 1.0) / 2.0  # n x this mod 1 spreads any share of n evenly
 
 
+def free_episode(episode: int, free_share: float) -> bool:
+    """Whether a run's episode number `episode` (1: its first) trains without the assist, at free_share."""
+    return (episode * GOLDEN_RATIO_FRACTION) % 1.0 < free_share
+
+
 def needs_the_env_in_process(assist: AttitudeAssist) -> str:
     """Why a run whose assist adapts cannot train without a setter for it (its envs in other processes)."""
     return (f"attitude_assist/adapt_every ({assist.adapt_every}) changes the sim's assist during the run, which needs "
@@ -44,7 +49,7 @@ class AssistCurriculum:
 
     def free(self, episode: int) -> bool:
         """Whether the run's episode number `episode` (1: its first) trains without the assist."""
-        return (episode * GOLDEN_RATIO_FRACTION) % 1.0 < self.assist.free_share
+        return free_episode(episode, self.assist.free_share)
 
     def scale_of(self, episode: int) -> float:
         """The scale episode number `episode` trains with: 0 if it is free, else the curriculum's."""
