@@ -258,9 +258,9 @@ def test_a_trainer_that_cannot_change_its_envs_assist_is_refused_before_it_train
 # -- evaluation ------------------------------------------------------------------------------------
 
 def test_evaluation_holds_the_assist_it_is_asked_for_and_none_by_default():
-    params = assisted(20.0, 1.0, adapt_every=20, scale=0.6)
+    params = assisted(20.0, 1.0, adapt_every=20, scale=0.6, free_share=0.25)
     held = with_assist(params, 0.05).attitude_assist
-    assert (held.stiffness, held.damping, held.scale, held.adapt_every) == (20.0, 1.0, 0.05, 0)
+    assert (held.stiffness, held.damping, held.scale, held.adapt_every, held.free_share) == (20.0, 1.0, 0.05, 0, 0.0)
     assert not with_assist(params, 0.0).attitude_assist.active
     with pytest.raises(ParamError, match="--assist: the run has no attitude assist"):
         with_assist(END_TO_END.default_params(), 0.1)

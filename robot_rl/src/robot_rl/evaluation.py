@@ -85,7 +85,7 @@ def with_assist(params: Any, scale: float, source: str = "--assist") -> Any:
                          f"and no damping)")
     if not assist.active or (scale == assist.scale and not assist.adapt_every):
         return params
-    held = {**assist.to_mapping(), "scale": scale, "adapt_every": 0}
+    held = {**assist.to_mapping(), "scale": scale, "adapt_every": 0, "free_share": 0.0}
     if scale == 0.0:
         held.update(stiffness=0.0, damping=0.0, scale=1.0)
     return params.with_changes(source, attitude_assist=held)
