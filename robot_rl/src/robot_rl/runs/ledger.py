@@ -127,8 +127,8 @@ class RunLedger:
     steps of episodes under way); otherwise they are the steps of the episodes that ended. With a
     budget of `max_steps` env steps, the progress line counts steps instead of episodes. `assist`: the run's
     attitude assist params; when they adapt, `set_assist` hands each new scale (0 for an episode the curriculum
-    trains free) to the trainer's env (ValueError when
-    the trainer has none to give: its envs cannot change the assist during a run)."""
+    trains free) to the trainer's env (ValueError when the trainer has none to give: its envs cannot change the
+    assist during a run)."""
 
     def __init__(self, run: RunDirectory, task: TaskSpec[Any], nepisodes: int, state: TrainingState, learner: Learner,
                  hooks: TrainingHooks, n_envs: int = 1, count_env_steps: Callable[[], int] | None = None,
