@@ -130,9 +130,9 @@ ADAPT = AttitudeAssist(stiffness=20.0, damping=1.0, adapt_every=4, lower_at_most
 
 def windows(curriculum, *falls_per_window):
     """The scale after each window of 4 episodes with that many falls, and whether each window changed it."""
-    seen = []
+    seen, episode = [], 0
     for falls in falls_per_window:
-        changed = [curriculum.episode_ended(i < falls) for i in range(4)]
+        changed = [curriculum.episode_ended(episode := episode + 1, i < falls) for i in range(4)]
         assert not any(changed[:3])
         seen.append((curriculum.scale, changed[3]))
     return seen
@@ -155,15 +155,16 @@ def test_free_episodes_are_the_share_asked_for_spread_evenly_and_do_not_count_wh
     assert abs(sum(free) - 250) <= 1 and all(1 <= sum(free[i:i + 8]) <= 3 for i in range(0, 1000, 8))
     assert [curriculum.scale_of(episode) for episode in range(1, 9)] == [1.0 * (not f) for f in free[:8]]
     assert not AssistCurriculum(ADAPT).free(1) and not any(map(AssistCurriculum(ADAPT).free, range(1, 100)))
-    assert not any(curriculum.episode_ended(True, free=True) for _ in range(10)) and curriculum.window == []
+    free_numbers = [episode for episode in range(1, 41) if curriculum.free(episode)]
+    assert not any(curriculum.episode_ended(episode, True) for episode in free_numbers) and curriculum.window == []
     curriculum.scale = 0.0  # no assist left: a free episode is like any other, its fall counts
-    curriculum.episode_ended(True, free=True)
+    curriculum.episode_ended(free_numbers[0], True)
     assert curriculum.window == [1]
 
 
 def test_a_fixed_assist_never_changes_and_a_state_that_does_not_fit_is_refused():
     fixed = AssistCurriculum(AttitudeAssist(stiffness=20.0, scale=0.3))
-    assert not any(fixed.episode_ended(True) for _ in range(50)) and fixed.scale == 0.3
+    assert not any(fixed.episode_ended(episode, True) for episode in range(1, 51)) and fixed.scale == 0.3
     for scale, window in ((1.5, []), (0.5, [0, 2]), (0.5, [0, 0, 0, 0])):
         with pytest.raises(ValueError, match="does not fit its params"):
             AssistCurriculum(ADAPT, scale, window)

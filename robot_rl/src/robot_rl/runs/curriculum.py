@@ -55,10 +55,10 @@ class AssistCurriculum:
         """The scale episode number `episode` trains with: 0 if it is free, else the curriculum's."""
         return 0.0 if self.free(episode) else self.scale
 
-    def episode_ended(self, fell: bool, free: bool = False) -> bool:
-        """Count an episode (`free`: it had no assist); True when the scale changed."""
+    def episode_ended(self, episode: int, fell: bool) -> bool:
+        """Count the run's episode number `episode`, which ended (`fell`: terminated); True when the scale changed."""
         assist = self.assist
-        if not assist.adapt_every or (free and self.scale > 0.0):
+        if not assist.adapt_every or (self.free(episode) and self.scale > 0.0):
             return False
         self.window.append(int(fell))
         if len(self.window) < assist.adapt_every:

@@ -198,7 +198,7 @@ class RunLedger:
         if curriculum is None:
             return
         previous, ended = curriculum.scale, self.state.episode
-        if curriculum.episode_ended(fell, curriculum.free(ended)):
+        if curriculum.episode_ended(ended, fell):
             self.log(f"attitude assist: scale {previous:.4g} -> {curriculum.scale:.4g} after episode "
                      f"{ended} ({curriculum.last_falls} of the last {curriculum.assist.adapt_every} "
                      f"{'assisted ' if curriculum.assist.free_share else ''}episodes fell)")
