@@ -14,6 +14,7 @@ from robot_rl import AGENTS, ParamError, RunFileError, find_agent
 from robot_rl.agents.rllib.params import RllibPpoParams, ppo_config
 from robot_rl.agents.rllib.policy import NumpyPpoPolicy, load_weights, save_weights
 from robot_rl.agents.rllib.runners import in_order
+from robot_rl.agents.rllib.trainer import sampled_count
 from robot_rl.agents.sb3.params import NetworkParams
 from robot_rl.params import DeepAgentParams
 
@@ -279,3 +280,7 @@ def test_the_module_runs_exploration_in_eval_mode_training_in_train_mode_and_ref
             super().setup()
     with pytest.raises(ValueError, match=r"cannot hold \['Dropout'\]"):
         dataclasses.replace(spec, module_class=WithDropout).build()
+
+
+def test_an_update_s_steps_count_as_0_when_rllib_reports_nan_after_a_lost_runner():
+    assert sampled_count(4096.0) == 4096 and sampled_count(0) == 0 and sampled_count(float("nan")) == 0

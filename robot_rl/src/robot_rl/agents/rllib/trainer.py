@@ -55,6 +55,12 @@ MODULE = "default_policy"  # RLlib's DEFAULT_MODULE_ID
 STOP_POLL_S = 0.5  # s between two looks at the stop request while an update runs
 
 
+def sampled_count(value: float) -> int:
+    """An update's count of sampled env steps as RLlib reports it; 0 when it is NaN, as RLlib reports it when a
+    runner's node was lost during the update (its metrics reduced over no values)."""
+    return int(value) if math.isfinite(value) else 0
+
+
 class RllibPpoTrainer:
     """Trains agent rllib_ppo on `envs` and writes `run` (see the module docstring)."""
 
@@ -219,7 +225,7 @@ class RllibPpoTrainer:
                     self._finished_weights, self.stopped = before, "interrupted"
                     break
                 self.updates += 1
-                self.env_steps += int(result.get(ENV_RUNNER_RESULTS, {}).get(NUM_ENV_STEPS_SAMPLED, 0))
+                self.env_steps += sampled_count(result.get(ENV_RUNNER_RESULTS, {}).get(NUM_ENV_STEPS_SAMPLED, 0))
                 for ended in self.envs.take_episodes():
                     if self.state.episode >= self.params.nepisodes:
                         break  # ended in the update after the last one counted
