@@ -1,7 +1,8 @@
 """Stable-Baselines3 on our envs without a master (direct backend): SB3's check_env on every task, the
 VecEnv contract of RobotVecEnv (N worker processes), DQN and PPO training that writes every results file,
 resume from model.zip's weights and agent.json's counters, evaluation of a deep run, and which agent
-may act in which action space (SAC: Box only, DQN: Discrete only)."""
+may act in which action space (SAC: Box only, DQN: Discrete only), and PPO's observations normalised in its
+network (normalise_observations: the statistics of every rollout, kept in model.zip)."""
 import hashlib
 import json
 import zipfile
@@ -9,8 +10,10 @@ import zipfile
 import gymnasium
 import numpy as np
 import pytest
+import torch
 from stable_baselines3 import DQN
 from stable_baselines3.common.env_checker import check_env
+from stable_baselines3.common.save_util import load_from_zip_file
 from stable_baselines3.common.vec_env import VecCheckNan, VecMonitor
 
 from hopper_training import TASKS as HOPPER_TASKS
@@ -32,6 +35,7 @@ from robot_rl import (
     make_vec_env,
     worker_seeds,
 )
+from robot_rl.agents.sb3.normaliser import RunningNormaliser
 from workspace_tools.ship import ship_run
 
 pytestmark = pytest.mark.deep  # needs torch and Stable-Baselines3 (requirements-deep.txt)
@@ -359,3 +363,49 @@ def test_shipping_refuses_a_folder_that_is_not_a_finished_run(tmp_path):
         ship_run(run.path, tmp_path / "shipped")
     with pytest.raises(ValueError, match="not a run folder"):
         ship_run(tmp_path, tmp_path / "shipped")
+
+
+def test_the_statistics_are_those_of_every_observation_folded_in():
+    normaliser = RunningNormaliser(gymnasium.spaces.Box(-np.inf, np.inf, (3,), np.float32))
+    rng = np.random.default_rng(0)
+    batches = [rng.normal([0.02, 5.0, -1.0], [0.01, 8.0, 0.5], (n, 3)) for n in (40, 1, 300)]
+    for batch in batches:
+        normaliser.update(batch)
+    seen = np.concatenate(batches)
+    np.testing.assert_allclose(normaliser.mean.numpy(), seen.mean(axis=0), rtol=1e-5)
+    # the start's variance 1 weighs 1e-4 of an observation: 3e-7 over these 341
+    np.testing.assert_allclose(normaliser.var.numpy(), seen.var(axis=0), rtol=1e-5, atol=1e-6)
+    normalised = normaliser(torch.as_tensor(seen, dtype=torch.float32)).numpy()
+    np.testing.assert_allclose(normalised.mean(axis=0), 0.0, atol=1e-4)
+    np.testing.assert_allclose(normalised.std(axis=0), 1.0, rtol=5e-3)  # the start and the floor: 0.16 %
+    far = normaliser(torch.tensor([[1e6, -1e6, 0.0]])).numpy()
+    assert far[0, 0] == 10.0 and far[0, 1] == -10.0, "clipped to +/- 10, VecNormalize's bound"
+
+
+def test_at_the_start_the_normaliser_is_the_identity():
+    normaliser = RunningNormaliser(gymnasium.spaces.Box(-1.0, 1.0, (2, 2), np.float32))
+    observations = torch.tensor([[[0.5, -0.25], [1.0, 0.0]]])
+    np.testing.assert_allclose(normaliser(observations).numpy(), [[0.5, -0.25, 1.0, 0.0]], rtol=1e-6)
+
+
+def test_a_run_keeps_its_statistics_in_model_zip_and_its_resume_and_policy_use_them(tmp_path):
+    trainers = []
+    run, first = train(tmp_path, "ppo", 1, nepisodes=6, trainers=trainers, normalise_observations=True)
+    extractor = trainers[0].model.policy.features_extractor
+    assert isinstance(extractor, RunningNormaliser)
+    folded = float(extractor.count)
+    assert folded >= 16 and (folded - 1e-4) % 16 == pytest.approx(0.0, abs=1e-6), "whole rollouts of 16 steps"
+    assert np.any(extractor.mean.numpy() != 0.0)
+    saved = load_from_zip_file(str(run.model_zip), device="cpu", load_data=False)[1]["policy"]
+    assert saved["features_extractor.count"] >= 16, "model.zip holds the statistics"
+    env = make_env(ONE_DISK_WALK, backend="direct")
+    try:
+        played = TrainedRun(run.path, list(CUBE_TASKS)).policy(env, 0).model.policy.features_extractor
+    finally:
+        env.close()
+    for name in ("mean", "var", "count"):
+        assert torch.equal(getattr(played, name), saved[f"features_extractor.{name}"]), name
+    _, second = train(tmp_path, "ppo", 1, resume=True, nepisodes=12, trainers=trainers, normalise_observations=True)
+    resumed = trainers[1].model.policy.features_extractor
+    assert float(resumed.count) > folded, "the resumed run folds its rollouts into the saved statistics"
+    assert second["completed"] and second["env_steps"] > first["env_steps"]

@@ -16,6 +16,7 @@ from stable_baselines3 import DQN, PPO, SAC
 from stable_baselines3.common.base_class import BaseAlgorithm
 
 from ...params import MAX_COUNT, DeepAgentParams, ParamError, Params, param
+from .normaliser import RunningNormaliser
 
 
 def _available_memory() -> int | None:
@@ -104,16 +105,26 @@ class PpoParams(NetworkParams):
     gae_lambda: float = param(low=0.0, high=1.0, doc="GAE lambda")
     clip_range: float = param(low=0.0, low_open=True, doc="PPO's clip range")
     ent_coef: float = param(low=0.0, doc="entropy bonus weight")
+    normalise_observations: bool = param(default=False, doc="normalise each observation value by its running mean "
+                                                            "and variance, inside the network (agents/sb3/normaliser)")
 
     def algorithm(self) -> Callable[..., BaseAlgorithm]:
         return PPO
+
+    def algorithm_kwargs(self) -> dict[str, Any]:
+        values = super().algorithm_kwargs()
+        del values["normalise_observations"]
+        return values
 
     def buffer_bytes(self, observation_size: int, n_envs: int) -> int:
         """SB3's rollout buffer (float32): per env step an observation, action, reward, return, advantage, value..."""
         return self.n_steps * n_envs * 4 * (observation_size + 7)
 
     def policy_kwargs(self, network: list[int]) -> dict[str, Any]:
-        return {"net_arch": {"pi": network, "vf": network}}
+        kwargs: dict[str, Any] = {"net_arch": {"pi": network, "vf": network}}
+        if self.normalise_observations:
+            kwargs["features_extractor_class"] = RunningNormaliser
+        return kwargs
 
 
 @dataclass(frozen=True, kw_only=True)

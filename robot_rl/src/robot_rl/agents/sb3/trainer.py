@@ -55,6 +55,7 @@ from ...runs.ledger import (
 from ...runs.results import EpisodeRecord, RunDirectory, RunFileError, aggregate
 from ...task import Episode, TaskSpec, episode_duration
 from ..registry import AgentSpec
+from .normaliser import NormaliserUpdates, RunningNormaliser
 from .params import DqnParams, NetworkParams
 
 CHECKPOINT_FORMAT = "robot_rl.deep_checkpoint/1"  # a format name written in agent.json: kept as it was
@@ -288,6 +289,13 @@ class DeepTrainer(Learner):
             return False
         return self.state.episode < self.params.nepisodes
 
+    def _callbacks(self) -> list[BaseCallback]:
+        """SB3's callbacks of a learn(): the episodes to the ledger, and the observations to a normaliser if any."""
+        callbacks: list[BaseCallback] = [_EpisodeLogger(self)]
+        if isinstance(getattr(self.model.policy, "features_extractor", None), RunningNormaliser):
+            callbacks.append(NormaliserUpdates())
+        return callbacks
+
     def train(self) -> dict[str, Any]:
         """Train until nepisodes episodes (or max_steps env steps); returns the summary written to summary.json."""
         state, ledger = self.state, self.ledger
@@ -298,7 +306,7 @@ class DeepTrainer(Learner):
         remaining = self.max_steps - state.env_steps
         if state.episode < self.params.nepisodes and remaining > 0 and not self.should_stop():
             with ledger.saved_on_stop():
-                self.model.learn(total_timesteps=remaining, callback=_EpisodeLogger(self), reset_num_timesteps=False)
+                self.model.learn(total_timesteps=remaining, callback=self._callbacks(), reset_num_timesteps=False)
         ledger.sync_env_steps()
         done = state.episode >= self.params.nepisodes or state.env_steps >= self.max_steps
         return ledger.close(done, self.stopped)
