@@ -77,6 +77,15 @@ def test_every_task_s_agent_config_names_a_task_and_an_agent_and_loads():
             assert "./ws sweep" in path.read_text(), f"{path}: names the sweep that chose it"
 
 
+def test_the_from_scratch_agent_configs_load_and_the_normalised_one_differs_only_by_normalising():
+    folder = ROOT / "hopper_training" / "config" / "end_to_end_scratch"
+    plain = find_agent("ppo").load_params(folder / "ppo.yaml")
+    normalised = find_agent("ppo").load_params(folder / "ppo_normalised.yaml")
+    assert find_agent("rllib_ppo").load_params(folder / "rllib_ppo.yaml") is not None
+    assert not plain.normalise_observations and normalised.normalise_observations
+    assert dataclasses.replace(normalised, normalise_observations=False) == plain, "Track B's runs compare one change"
+
+
 def test_results_folders_and_checkpoints():
     assert {name: spec.results_name(ONE_DISK_WALK) for name, spec in AGENTS.items()} == \
         {"qlearn": "moving_cube", "dqn": "moving_cube-dqn", "ppo": "moving_cube-ppo", "sac": "moving_cube-sac",
