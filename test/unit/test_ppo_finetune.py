@@ -49,6 +49,8 @@ def test_the_config_loads_and_unknown_keys_or_a_missing_student_get_one_line(tmp
     bad.write_text(AGENT.config_path.read_text() + "log_std: -3\n")
     with pytest.raises(ParamError, match="log_std"):
         AGENT.load_params(bad)
+    with pytest.raises(ParamError, match="^test: ppo_finetune normalises the observations by its student's fixed "):
+        AGENT.load_params().with_changes("test", normalise_observations=True)
     missing = AGENT.load_params().with_changes("test", student=str(tmp_path))
     with pytest.raises(ParamError, match=r"^agent ppo_finetune: .*student.json: not a student's architecture"):
         AGENT.check_fit(env, missing, "agent ppo_finetune")

@@ -82,6 +82,12 @@ class FinetuneParams(PpoParams):
     frozen_policy_updates: int = param(low=0, high=1_000_000, doc="updates at the start in which only the "
                                                                   "critic learns (the actor held)")
 
+    def check(self, source: str) -> None:
+        super().check(source)
+        if self.normalise_observations:
+            raise ParamError(f"{source}: ppo_finetune normalises the observations by its student's fixed statistics: "
+                             f"normalise_observations must be false")
+
     def algorithm(self) -> Callable[..., BaseAlgorithm]:
         return FinetunePPO
 

@@ -9,7 +9,8 @@ the video, a shipped policy) normalises as training did without a file or a wrap
   (VecNormalize's defaults). At the start mean 0 and variance 1: the identity.
 - `NormaliserUpdates`: the callback that folds each rollout's observations into the statistics after PPO's update
   on that rollout, before the next one is collected: a rollout is collected and learned from with the same
-  statistics (PPO's probability ratios compare one function), as VecNormalize's stored observations are.
+  statistics (PPO's probability ratios compare one function), as VecNormalize's stored observations are. The last
+  rollout of a run (or of a run's part before a resume) is learned from but not folded in.
 """
 from __future__ import annotations
 
