@@ -1,14 +1,15 @@
 """SIGTERM to an agent rllib_ppo training node mid-update (issue 42: every wait on Ray ended by SIGTERM within 10 s),
 through the cube's main.launch with backend:=direct and its own private Ray: the node ends within 10 s as a stopped
 run (exit 130, one line; summary.json marked interrupted; the checkpoint of the last finished update, whose weights
-load back), and no runner of it is left. Before the fix ray.init had replaced the node's SIGTERM handler with Ray's,
-which aborted the process (exit -6, no summary)."""
+load back), and no runner of it is left, nor a folder of it in /tmp. Before the fix ray.init had replaced the node's
+SIGTERM handler with Ray's, which aborted the process (exit -6, no summary)."""
 import json
 import os
 import re
 import signal
 import subprocess
 import time
+from pathlib import Path
 
 import pytest
 
@@ -26,6 +27,7 @@ INTERRUPTED = 130
 def test_sigterm_mid_update_ends_an_rllib_run_within_10_s_and_keeps_its_checkpoint(tmp_path):
     master = RosMaster(tmp_path / "ros", cwd=REPO)
     log, results = tmp_path / "run.log", tmp_path / "results"
+    temp_folders = set(Path("/tmp").glob("rrl-ray-*")) | set(Path("/tmp").glob("robot_rl-rllib-runner*"))
     try:
         with open(log, "w") as out:  # 1024-step fragments: an update takes well over 10 s on these cores
             launch = master.start(["rosrun", "workspace_tools", "roslaunch_checked.py", "moving_cube_training",
@@ -54,5 +56,7 @@ def test_sigterm_mid_update_ends_an_rllib_run_within_10_s_and_keeps_its_checkpoi
         assert load_weights(run / WEIGHTS_FILE, checkpoint[WEIGHTS_DIGEST], run / "agent.json")  # its sha256 holds
         wait_for(lambda: not any(alive(pid) for pid in runners), 30, "the end of both env runners")
         assert master.leftovers() == [], [process_name(pid) for pid in master.leftovers()]
+        left = set(Path("/tmp").glob("rrl-ray-*")) | set(Path("/tmp").glob("robot_rl-rllib-runner*"))
+        assert left == temp_folders, f"the run's Ray and runner folders are left: {sorted(left - temp_folders)}"
     finally:
         master.close()

@@ -146,6 +146,7 @@ def test_a_sweep_whose_driver_is_killed_resumes_with_every_episode_once(cluster,
     results, log = tmp_path / "results", tmp_path / "sweep.log"
     args = ("seeds:=0-1", "nepisodes:=60", "nsteps:=100", "name:=killed", "eval_episodes:=1")
     sweep = results / "moving_cube" / "killed"
+    temp_folders = set(Path("/tmp").glob("rrl-ray-*"))  # the cluster's nodes'
     driver = start_sweep(cluster, results, log, *args)
 
     def checkpointed_mid_run() -> list:
@@ -168,6 +169,7 @@ def test_a_sweep_whose_driver_is_killed_resumes_with_every_episode_once(cluster,
         os.kill(driver.pid, signal.SIGKILL)  # the driver lost: Ray ends its trials, PDEATHSIG their launches
         driver.wait(30)
     wait_for(lambda: not training_processes(cluster), 60, "the end of every training process of the killed sweep")
+    assert set(Path("/tmp").glob("rrl-ray-*")) == temp_folders  # a driver in a cluster makes no Ray temp folder
     summary = json.loads((sweep / f"seed={resumed}" / "summary.json").read_text())
     assert summary["completed"] is False and 0 < summary["episodes"] < 60, summary
 

@@ -302,13 +302,14 @@ def _stop_on_signals() -> Iterator[list[int]]:
             signal.signal(signum, handler)
 
 
-def _start_ray(spec: SweepSpec, temp_dir: Path) -> None:
+def _start_ray(spec: SweepSpec, temp_dir: Path | None) -> None:
     """Join `spec.cluster` (robot_rl.workers.cluster.connect: "ray" or HOST:PORT, bounded), else start Ray on this
     machine, its temp folder inside `temp_dir` (private: robot_rl.workers.cluster.new_temp_dir)."""
     if spec.cluster:
         from robot_rl import connect
         connect(spec.cluster)
         return
+    assert temp_dir is not None, "a local Ray needs its temp folder"
     import ray
     handlers = {signum: signal.getsignal(signum) for signum in (signal.SIGTERM, signal.SIGINT)}
     ray.init(address="local", num_cpus=spec.concurrent or None, include_dashboard=False,
@@ -396,7 +397,9 @@ def main(argv: Sequence[str]) -> int:
         os.environ["RAY_USAGE_STATS_ENABLED"] = "0"
         os.environ.setdefault("RAY_AIR_NEW_OUTPUT", "0")  # with verbose=0: no tables from Tune, our lines only
         import ray
-        temp_dir = cluster.new_temp_dir()  # short (Ray's socket paths must fit 107 bytes) and private (0700)
+        # a local Ray's: short (Ray's socket paths must fit 107 bytes) and private (0700); none in a cluster, where
+        # a killed driver would leave it behind
+        temp_dir = None if spec.cluster else cluster.new_temp_dir()
         with _stop_on_signals() as stopped:
             try:
                 _start_ray(spec, temp_dir)
@@ -416,7 +419,8 @@ def main(argv: Sequence[str]) -> int:
                      f"run keeping its last checkpoint")
             finally:
                 ray.shutdown()  # its trials' actors end with it, and their launches by their death signal
-                shutil.rmtree(temp_dir, ignore_errors=True)
+                if temp_dir is not None:
+                    shutil.rmtree(temp_dir, ignore_errors=True)
     print(write_outputs(spec, sweep_dir, jobs, curves=not stopped))
     not_done = [job.name for job in jobs if not trial_done(job)]
     if failed:

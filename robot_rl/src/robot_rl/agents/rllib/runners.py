@@ -10,7 +10,8 @@ with each its env, master and sim node) and the Ray it started, and removes that
 
 Runner r (RLlib's worker_index, 1..N/K) holds K = envs_per_runner envs (a sync vector env; K is 1 over ROS), env i =
 (r-1)*K + k made as env worker i makes its own (robot_rl.workers.base.worker_env: the i-th seed of worker_seeds;
-over ROS a private master and sim node on its node's loopback, their logs in a temporary folder on that node). A
+over ROS a private master and sim node on its node's loopback, their logs in a temporary folder on that node: in
+the temp folder of the Ray this process started, if it did, so that close() removes it also after an abandon). A
 runner restarted after its node was lost makes them anew with the same seeds. `EpisodeTap` wraps that env: the agent
 learns from the rewards times reward_scale, and every episode that ends is kept on the runner (steps, the task's
 return, terminated, sim time, last info, the runner and its node) until the driver takes them (`take_episodes`,
@@ -110,7 +111,7 @@ def make_runner_env(config: Any) -> EpisodeTap:
     index = ((runner - 1) * per_runner + _MADE[0] % per_runner) % config["envs"]
     _MADE[0] += 1
     signal.signal(signal.SIGCHLD, signal.SIG_DFL)  # stop_process waits for its children (Ray may ignore SIGCHLD)
-    log_dir = Path(tempfile.mkdtemp(prefix=f"robot_rl-rllib-runner{runner}-env{index}-"))
+    log_dir = Path(tempfile.mkdtemp(prefix=f"robot_rl-rllib-runner{runner}-env{index}-", dir=config["log_root"]))
     seed = worker_seeds(config["seed"], config["envs"])[index]
     env, sim = worker_env(index, WorkerRecipe(recipe.task, recipe.params, recipe.backend, seed,
                                               recipe.ros_timeout, log_dir, False, None, {}))
@@ -206,7 +207,7 @@ class RllibEnvs:
     def env_config(self, reward_scale: float, envs_per_runner: int = 1) -> dict[str, Any]:
         """What every runner's env creator gets (make_runner_env)."""
         return {"recipe": self.recipe, "seed": self.seed, "envs": self.num_envs, "envs_per_runner": envs_per_runner,
-                "reward_scale": reward_scale}
+                "reward_scale": reward_scale, "log_root": None if self._temp_dir is None else str(self._temp_dir)}
 
     def register(self) -> str:
         """Register the runners' env creator with Ray Tune; returns its name."""
