@@ -1,6 +1,7 @@
 """Unit tests of MonopedEndToEnd-v0 (issue 39) on the direct backend: its spaces pass gymnasium's and
 Stable-Baselines3's env checkers, the observation stacks `history` frames and the last action, the reward terms on
 hand-made values, and the task's termination at 0.6 rad."""
+import dataclasses
 import math
 
 import gymnasium
@@ -102,3 +103,10 @@ def test_a_fall_past_0_6_rad_ends_the_episode_with_the_fall_term_alone(env):
 def test_each_variant_config_loads_strictly_with_the_values_its_name_says(variant, changes):
     params = END_TO_END.load_params(END_TO_END.config_path.parent / variant)
     assert {key: getattr(params, key) for key in changes} == changes
+
+
+def test_the_assist_push_config_is_the_assist_config_with_pushes_alone():
+    folder = END_TO_END.config_path.parent
+    assist = END_TO_END.load_params(folder / "end_to_end_assist.yaml")
+    pushed = END_TO_END.load_params(folder / "end_to_end_assist_push.yaml")
+    assert assist.push_speed == 0.0 and pushed == dataclasses.replace(assist, push_speed=0.3)
