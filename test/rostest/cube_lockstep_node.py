@@ -153,7 +153,10 @@ class CubeLockstepTest(unittest.TestCase):
                 frames.update(transform.child_frame_id for transform in msg.transforms)
 
         tf_subscriber = rospy.Subscriber("/tf", TFMessage, on_tf, queue_size=None, tcp_nodelay=True)
-        clock_subscriber = rospy.Subscriber("/clock", Clock, on_clock, queue_size=None, tcp_nodelay=True)
+        # rospy gives a node one receive queue per topic, and its own /clock subscriber (use_sim_time) made it 1:
+        # queue_size=None keeps that, and on a loaded machine all but the last of the /clock messages read at once
+        # were dropped here (a gap of 30 ms seen). A queue as long as the whole run keeps every one.
+        clock_subscriber = rospy.Subscriber("/clock", Clock, on_clock, queue_size=10_000, tcp_nodelay=True)
         try:
             deadline = time.monotonic() + TIMEOUT
             while "cube_body" not in frames:  # the sim sends it once it sees /tf's subscriber: this one
