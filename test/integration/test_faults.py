@@ -59,6 +59,11 @@ def node_pid(master: RosMaster, name: str) -> int:
     return int(next(line.split()[-1] for line in info.splitlines() if line.startswith("Pid:")))
 
 
+def process_state(pid: int) -> str:
+    """A process's state letter from /proc (R running, S sleeping, T stopped, ...)."""
+    return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+
+
 def run_files(results: Path, task: str = "moving_cube") -> dict:
     """Every file of the latest run, as bytes."""
     run = results / task / "latest"
@@ -716,10 +721,21 @@ def test_sigkill_of_the_trainer_between_checkpoints_then_resume(master, tmp_path
     results = tmp_path / "results"
     qtable = results / "moving_cube" / "latest" / "qtable.json"
 
-    def checkpoint_then_more():
-        return qtable.exists() and 10 <= json.loads(qtable.read_text())["episode"] < len(episodes(results))
-    wait_for(checkpoint_then_more, 120, "a checkpoint at episode >= 10 followed by another episode")
-    os.kill(node_pid(master, "/movingcube_gym"), signal.SIGKILL)
+    wait_for(qtable.exists, 120, "the run's first checkpoint")
+    trainer = node_pid(master, "/movingcube_gym")
+
+    def frozen_between_checkpoints():
+        """The trainer frozen (SIGSTOP) while episodes.csv holds more than its checkpoint at episode >= 10, else
+        let go on. Killed as it is found so: a kill after the check had raced the next checkpoint (the cube's
+        episodes are short; `rosnode info` in between took long enough for it on a loaded machine)."""
+        os.kill(trainer, signal.SIGSTOP)
+        wait_for(lambda: process_state(trainer) == "T", 10, f"the trainer (pid {trainer}) stopped by SIGSTOP")
+        if 10 <= json.loads(qtable.read_text())["episode"] < len(episodes(results)):
+            return True
+        os.kill(trainer, signal.SIGCONT)
+        return False
+    wait_for(frozen_between_checkpoints, 120, "a checkpoint at episode >= 10 followed by another episode")
+    os.kill(trainer, signal.SIGKILL)
     assert launch.wait(60) == 128 + signal.SIGKILL
     saved = json.loads(qtable.read_text())["episode"]
     logged = episodes(results)
