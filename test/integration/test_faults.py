@@ -22,6 +22,7 @@ import yaml
 from hopper_training.envs.stay_up import STAY_UP
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
 from moving_cube_training.robot import MOVING_CUBE
+from workspace_tools.bench.common import stat_fields
 from workspace_tools.launch_reaper import descendants
 from workspace_tools.paths import PROGRAMS, REPO
 from workspace_tools.processes import Processes, RosMaster, free_port, processes_using, wait_for
@@ -57,11 +58,6 @@ def node_pid(master: RosMaster, name: str) -> int:
     """The pid of a node, from `rosnode info` (the master knows every node's XML-RPC address)."""
     info = master.run(["rosnode", "info", name], timeout=30).stdout
     return int(next(line.split()[-1] for line in info.splitlines() if line.startswith("Pid:")))
-
-
-def process_state(pid: int) -> str:
-    """A process's state letter from /proc (R running, S sleeping, T stopped, ...)."""
-    return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
 
 
 def run_files(results: Path, task: str = "moving_cube") -> dict:
@@ -729,7 +725,7 @@ def test_sigkill_of_the_trainer_between_checkpoints_then_resume(master, tmp_path
         let go on. Killed as it is found so: a kill after the check had raced the next checkpoint (the cube's
         episodes are short; `rosnode info` in between took long enough for it on a loaded machine)."""
         os.kill(trainer, signal.SIGSTOP)
-        wait_for(lambda: process_state(trainer) == "T", 10, f"the trainer (pid {trainer}) stopped by SIGSTOP")
+        wait_for(lambda: stat_fields(trainer)[0] == "T", 10, f"the trainer (pid {trainer}) stopped by SIGSTOP")
         if 10 <= json.loads(qtable.read_text())["episode"] < len(episodes(results)):
             return True
         os.kill(trainer, signal.SIGCONT)
