@@ -179,6 +179,28 @@ def test_evaluate_plays_one_constant_action_every_hop(capsys):
     assert action_meaning(PARAMS, 2) == pytest.approx((0.02, 0.0)), "action 2: the foot 2 cm ahead"
 
 
+def test_placement_by_speed_puts_the_foot_further_ahead_the_faster_the_robot_goes(env, capsys):
+    policy = POLICIES["placement_by_speed"].build(env, 0.0)
+    at_speed = [np.array([s, 0.0, s, 0.0, 0.0, 0.0, 0.6, 0.3], dtype=np.float32) for s in (0.0, 0.4, 0.6, 1.4, 1.6)]
+    assert [action_meaning(PARAMS, policy(o)) for o in at_speed] == [
+        pytest.approx((offset, 0.0)) for offset in (0.02, 0.02, 0.04, 0.04, 0.06)]
+    with pytest.raises(ValueError, match="hops in place: --speed must be 0, got 0.3"):
+        POLICIES["placement_by_speed"].build(env, 0.3)
+    assert evaluation.main(["--policy", "placement_by_speed", "--task", "hop_in_place", "--episodes", "1",
+                            "--horizon-s", "2"], TASKS, "evaluate_monoped", POLICIES) == 0
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert report["placement_by_speed"]["mean_hops"] >= 5
+
+
+def test_placement_by_speed_is_for_hop_in_place_only():
+    end_to_end = make_env(next(t for t in TASKS if t.name == "end_to_end"), backend="direct", seed=0)
+    try:
+        with pytest.raises(ValueError, match="--policy placement_by_speed is for --task hop_in_place"):
+            POLICIES["placement_by_speed"].build(end_to_end, 0.0)
+    finally:
+        end_to_end.close()
+
+
 def test_evaluate_plays_a_constant_box_action_and_end_to_end_does_nothing_by_holding_the_crouch(capsys):
     report = evaluate_json(capsys, "--policy", "constant", "--action", "0,0.5,0", "--task", "end_to_end",
                            "--episodes", "1", "--horizon-s", "0.5")

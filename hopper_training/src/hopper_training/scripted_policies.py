@@ -1,6 +1,8 @@
-"""The hand-written policies evaluate.py offers on the monoped's tasks (--policy controller, do_nothing, random)."""
+"""The hand-written policies evaluate.py offers on the monoped's tasks (--policy controller, do_nothing,
+placement_by_speed, random)."""
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -11,7 +13,7 @@ from .controller.policy import ControllerPolicy, five_ms_controller
 from .controller.policy import controller_params as step_controller_params
 from .envs.end_to_end import END_TO_END
 from .envs.hop_cycle import controller_params as hop_cycle_controller_params
-from .envs.hop_in_place import HOP_IN_PLACE, HopInPlaceParams, do_nothing_action
+from .envs.hop_in_place import HOP_IN_PLACE, HopInPlaceParams, do_nothing_action, offsets
 from .envs.residual_forward import RESIDUAL_FORWARD
 from .envs.residual_in_place import RESIDUAL_IN_PLACE
 
@@ -19,14 +21,38 @@ RESIDUAL_TASKS = (RESIDUAL_IN_PLACE, RESIDUAL_FORWARD)
 HOP_CYCLE_TASKS = (HOP_IN_PLACE, *RESIDUAL_TASKS)
 
 
-def do_nothing_policy(env: Any, speed: float) -> ConstantAction:
-    """--policy do_nothing on hop_in_place: the do-nothing action every hop (offset 0, the default thrust)."""
+def hop_in_place_params(env: Any, speed: float, policy: str) -> HopInPlaceParams:
+    """The env's params for `--policy policy`, which is for hop_in_place only and takes no --speed."""
     params = env.unwrapped.params
     if not isinstance(params, HopInPlaceParams):
-        raise ValueError(f"--policy do_nothing is for --task {HOP_IN_PLACE.name}")
+        raise ValueError(f"--policy {policy} is for --task {HOP_IN_PLACE.name}")
     if speed != 0.0:
         raise ValueError(f"--task {HOP_IN_PLACE.name} hops in place: --speed must be 0, got {speed}")
-    return ConstantAction(do_nothing_action(params))
+    return params
+
+
+def do_nothing_policy(env: Any, speed: float) -> ConstantAction:
+    """--policy do_nothing on hop_in_place: the do-nothing action every hop (offset 0, the default thrust)."""
+    return ConstantAction(do_nothing_action(hop_in_place_params(env, speed, "do_nothing")))
+
+
+PLACEMENT_BY_SPEED = (0.02, 0.02)  # m, m per m/s: placement_by_speed's offset at rest, and its growth with speed
+
+
+def placement_by_speed(env: Any, speed: float) -> Callable[[np.ndarray], int]:
+    """--policy placement_by_speed on hop_in_place: a hand-made placement that depends on the state, the baseline
+    beside the constant ones under strong pushes. The foot lands 2 cm + 2 cm per m/s of the speed at lift-off ahead
+    along the velocity, rounded to the nearest offset level (hop_in_place.yaml's: +2 cm up to 0.5 m/s, +4 cm up to
+    1.5 m/s), with the default thrust: a rule a Q-table over the task's state key can hold."""
+    params = hop_in_place_params(env, speed, "placement_by_speed")
+    levels = np.array(offsets(params))
+    thrust = do_nothing_action(params) % params.thrust_levels
+    at_rest, per_speed = PLACEMENT_BY_SPEED
+
+    def policy(observation: np.ndarray) -> int:
+        offset = int(np.argmin(np.abs(levels - (at_rest + per_speed * float(observation[2])))))
+        return offset * params.thrust_levels + thrust
+    return policy
 
 
 def zero_residual(env: Any, speed: float) -> Any:
@@ -69,5 +95,6 @@ def controller(env: Any, speed: float) -> Any:
 POLICIES = {
     "controller": ScriptedPolicy(controller_params, controller),
     "do_nothing": ScriptedPolicy(lambda task, params: params, do_nothing),
+    "placement_by_speed": ScriptedPolicy(lambda task, params: params, placement_by_speed),
     "random": ScriptedPolicy(lambda task, params: params,
                              lambda env, speed: random_actions(env.action_space, np.random.default_rng(0)))}
