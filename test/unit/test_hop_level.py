@@ -12,6 +12,7 @@ from gymnasium.utils.env_checker import check_env
 
 from hopper_training import TASKS
 from hopper_training.controller.core import HopController, HopGains, HopInput, Phase
+from hopper_training.envs.end_to_end import END_TO_END
 from hopper_training.envs.hop_cycle import controller_params
 from hopper_training.envs.hop_in_place import (
     HOP_IN_PLACE,
@@ -193,7 +194,7 @@ def test_placement_by_speed_puts_the_foot_further_ahead_the_faster_the_robot_goe
 
 
 def test_placement_by_speed_is_for_hop_in_place_only():
-    end_to_end = make_env(next(t for t in TASKS if t.name == "end_to_end"), backend="direct", seed=0)
+    end_to_end = make_env(END_TO_END, backend="direct", seed=0)
     try:
         with pytest.raises(ValueError, match="--policy placement_by_speed is for --task hop_in_place"):
             POLICIES["placement_by_speed"].build(end_to_end, 0.0)
