@@ -54,6 +54,19 @@ def test_params_without_a_do_nothing_action_are_refused():
         PARAMS.with_changes("test", thrust_min=-0.2, thrust_levels=2, default_thrust=-0.1)
 
 
+def test_the_push075_config_is_the_push_config_with_its_marked_keys_alone():
+    folder = HOP_IN_PLACE.config_path.parent
+    pushed = HOP_IN_PLACE.load_params(folder / "hop_in_place_push.yaml")
+    strong = HOP_IN_PLACE.load_params(folder / "hop_in_place_push075.yaml")
+    marked = {"alpha": 0.03, "gamma": 0.8, "epsilon_discount": 0.995, "epsilon_min": 0.02, "q_init": 14.0,
+              "nepisodes": 1200, "push_speed": 0.75, "offset_min": 0.0, "offset_max": 0.06, "offset_levels": 4,
+              "speed_weight": 2.0}
+    assert strong == dataclasses.replace(pushed, **marked)
+    assert offsets(strong) == pytest.approx([0.0, 0.02, 0.04, 0.06])
+    text = (folder / "hop_in_place_push075.yaml").read_text()
+    assert sorted(line.split(":")[0] for line in text.splitlines() if "# push075:" in line) == sorted(marked)
+
+
 def test_the_state_key_bins_speed_and_the_sign_of_the_lean_along_the_velocity():
     key = HopInPlaceStateKey(PARAMS)
 
