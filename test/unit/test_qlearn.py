@@ -147,13 +147,39 @@ def test_the_tutorials_noise_never_tries_an_untried_action_when_rewards_are_posi
     assert len(set(tried_actions(ql, 500))) == 1
 
 
-@pytest.mark.parametrize("exploration, first_visit", [("epsilon_greedy", "target"), ("noise", "reward")])
-def test_the_choices_are_saved_with_the_table(exploration, first_visit):
-    ql = QLearn(range(3), 0.2, 0.1, 0.9, seed=1, exploration=exploration, q_init=7.5, first_visit=first_visit)
+def test_a_visits_step_size_averages_q_init_and_the_targets_until_the_step_comes_down_to_alpha():
+    ql = QLearn(range(2), 0.0, alpha=0.2, gamma=0.9, q_init=10.0, first_visit="target", step_size="visits")
+    for value in (4.0, 7.0, 1.0):
+        ql.learnQ("s", 0, 0.0, value)
+    assert ql.getQ("s", 0) == pytest.approx((10.0 + 4.0 + 7.0 + 1.0) / 4)  # steps 1/2, 1/3, 1/4
+    ql.learnQ("s", 0, 0.0, 0.0)  # 1/5 = alpha
+    ql.learnQ("s", 0, 0.0, 0.0)  # 1/6 < alpha: alpha
+    assert ql.getQ("s", 0) == pytest.approx(5.5 * 0.8 * 0.8)
+    assert ql.visits == {("s", 0): 5} and ql.getQ("s", 1) == 10.0
+
+
+def test_a_constant_step_size_counts_no_visits():
+    ql = QLearn(range(2), 0.0, alpha=0.2, gamma=0.9, q_init=10.0, first_visit="target")
+    ql.learnQ("s", 0, 0.0, 0.0)
+    ql.learnQ("s", 0, 0.0, 0.0)
+    assert ql.getQ("s", 0) == pytest.approx(10.0 * 0.8 * 0.8) and ql.visits == {}
+
+
+@pytest.mark.parametrize("exploration, first_visit, step_size",
+                         [("epsilon_greedy", "target", "visits"), ("noise", "reward", "constant")])
+def test_the_choices_are_saved_with_the_table(exploration, first_visit, step_size):
+    ql = QLearn(range(3), 0.2, 0.1, 0.9, seed=1, exploration=exploration, q_init=7.5, first_visit=first_visit,
+                step_size=step_size)
+    ql.learn("s", 1, 1.0, "t")
+    ql.learn("s", 1, 1.0, "t")
     loaded = QLearn.from_dict(json.loads(json.dumps(ql.to_dict())))
-    assert (loaded.exploration, loaded.q_init, loaded.first_visit) == (exploration, 7.5, first_visit)
+    assert (loaded.exploration, loaded.q_init, loaded.first_visit, loaded.step_size) == \
+        (exploration, 7.5, first_visit, step_size)
+    assert loaded.q == ql.q and loaded.visits == ql.visits == ({("s", 1): 2} if step_size == "visits" else {})
 
 
 def test_unknown_choices_are_refused():
     with pytest.raises(ValueError, match="exploration"):
         QLearn(range(3), 0.2, 0.1, 0.9, exploration="softmax")
+    with pytest.raises(ValueError, match="step_size one of"):
+        QLearn(range(3), 0.2, 0.1, 0.9, step_size="harmonic")

@@ -135,6 +135,26 @@ def test_resume_after_a_crash_between_checkpoints(tmp_path):
     assert summary["env_steps"] == sum(r.steps for r in records)
 
 
+def test_an_episode_stopped_midway_takes_its_visit_counts_back_with_its_updates(tmp_path):
+    """With step_size visits every step of a completed episode is one counted update, and the steps of the
+    episode Ctrl-C stopped are rolled back with the table: the checkpoint counts the completed episodes' steps."""
+    params = cube_params(nepisodes=4, nsteps=20, step_size="visits", epsilon=0.5)
+    run = new_run(tmp_path, params, run_name="run")
+    steps = []
+
+    def on_step(reward, cumulated):
+        steps.append(reward)
+        if len(steps) == 30:
+            raise KeyboardInterrupt
+    with pytest.raises(KeyboardInterrupt):
+        train(run, params, on_step=on_step)
+    checkpoint = json.loads(run.qtable_json.read_text())
+    completed = run.read_episodes()
+    assert 0 < sum(r.steps for r in completed) < 30
+    assert sum(n for _, _, n in checkpoint["qlearn"]["visits"]) == sum(r.steps for r in completed)
+    assert {(s, a) for s, a, _ in checkpoint["qlearn"]["visits"]} == {(s, a) for s, a, _ in checkpoint["qlearn"]["q"]}
+
+
 def test_resume_without_a_checkpoint_fails_clearly(tmp_path):
     params = cube_params()
     run = new_run(tmp_path, params)
@@ -205,8 +225,9 @@ def test_a_damaged_checkpoint_is_refused_before_any_file_changes(tmp_path, damag
     assert {p.name: p.read_bytes() for p in run.path.iterdir()} == before, "nothing was written"
 
 
-@pytest.mark.parametrize("changes", [{"alpha": 0.5}, {"epsilon": 0.2, "q_init": 5.0}, {"epsilon_discount": 0.5}],
-                         ids=["alpha", "epsilon_and_q_init", "epsilon_discount"])
+@pytest.mark.parametrize("changes", [{"alpha": 0.5}, {"epsilon": 0.2, "q_init": 5.0}, {"epsilon_discount": 0.5},
+                                     {"step_size": "visits"}],
+                         ids=["alpha", "epsilon_and_q_init", "epsilon_discount", "step_size"])
 def test_a_resume_with_changed_learning_params_is_refused_naming_them_as_dqns_is(tmp_path, changes):
     """A tabular resume refuses changed learning params as DeepTrainer refuses changed agent params (before: the
     checkpoint's alpha was kept without a word); nepisodes may change (a run trained further)."""

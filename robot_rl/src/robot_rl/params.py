@@ -230,6 +230,9 @@ class TaskParams(Params):
     q_init: float = param(default=0.0, doc="Q of a pair never updated (the tutorial's 0)")
     first_visit: str = param(choices=("reward", "target"), default="reward",
                              doc="a pair's first update: store the reward (tutorial) or step from q_init")
+    step_size: str = param(choices=("constant", "visits"), default="constant",
+                           doc="constant: every update steps alpha (tutorial); visits: a pair's n-th update steps "
+                               "max(alpha, 1/(n+1))")
     push_speed: float = param(low=0.0, high=10.0, default=0.0,
                               doc="m/s: the env kicks the base this much horizontally, in a random direction, at "
                                   "random times (robot_rl.envs.pushes; 0: never; evaluate.py --push sets it)")

@@ -11,7 +11,10 @@ Differences from the tutorial:
   or "epsilon_greedy" (with probability epsilon, a uniformly random action);
   q_init, the value of a pair never updated (0);
   first_visit "reward" (the tutorial's: a pair's first update stores the reward) or "target" (a
-  normal alpha step from q_init, which keeps an optimistic q_init optimistic for a while).
+  normal alpha step from q_init, which keeps an optimistic q_init optimistic for a while);
+  step_size "constant" (the tutorial's: every update steps alpha) or "visits" (a pair's n-th update
+  steps max(alpha, 1 / (n + 1)): Q is the mean of q_init and the pair's targets until that step comes
+  down to alpha, so the values of pairs visited often stop following the last few noisy targets).
 """
 from __future__ import annotations
 
@@ -22,6 +25,7 @@ from typing import Any, Literal, overload
 FORMAT = "robot_rl.qlearn/1"
 EXPLORATIONS = ("noise", "epsilon_greedy")
 FIRST_VISITS = ("reward", "target")
+STEP_SIZES = ("constant", "visits")
 
 
 def _to_lists(value: Any) -> Any:
@@ -41,30 +45,38 @@ class QLearn:
 
     def __init__(self, actions: Iterable[int], epsilon: float, alpha: float, gamma: float,
                  seed: int | None = None, exploration: str = "noise", q_init: float = 0.0,
-                 first_visit: str = "reward") -> None:
-        if exploration not in EXPLORATIONS or first_visit not in FIRST_VISITS:
-            raise ValueError(f"exploration must be one of {EXPLORATIONS} and first_visit one of {FIRST_VISITS}, "
-                             f"got {exploration!r} and {first_visit!r}")
+                 first_visit: str = "reward", step_size: str = "constant") -> None:
+        if exploration not in EXPLORATIONS or first_visit not in FIRST_VISITS or step_size not in STEP_SIZES:
+            raise ValueError(f"exploration must be one of {EXPLORATIONS}, first_visit one of {FIRST_VISITS} and "
+                             f"step_size one of {STEP_SIZES}, got {exploration!r}, {first_visit!r} and {step_size!r}")
         self.q: dict[tuple[str, int], float] = {}
+        self.visits: dict[tuple[str, int], int] = {}  # updates per pair (kept with step_size "visits")
         self.epsilon = epsilon  # exploration probability
         self.alpha = alpha      # learning rate
         self.gamma = gamma      # discount factor
         self.actions = [int(a) for a in actions]
         self.rng = random.Random(seed)
         self.exploration, self.q_init, self.first_visit = exploration, q_init, first_visit
+        self.step_size = step_size
 
     def getQ(self, state: str, action: int) -> float:
         return self.q.get((state, action), self.q_init)
 
     def learnQ(self, state: str, action: int, reward: float, value: float) -> None:
         """Move Q towards `value`; with first_visit "reward" a pair's first update stores `reward` itself."""
-        old = self.q.get((state, action))
+        pair = (state, action)
+        step = self.alpha
+        if self.step_size == "visits":
+            n = self.visits.get(pair, 0) + 1
+            self.visits[pair] = n
+            step = max(self.alpha, 1.0 / (n + 1))
+        old = self.q.get(pair)
         if old is None:
             if self.first_visit == "reward":
-                self.q[(state, action)] = reward
+                self.q[pair] = reward
                 return
             old = self.q_init
-        self.q[(state, action)] = old + self.alpha * (value - old)
+        self.q[pair] = old + step * (value - old)
 
     def learn(self, state1: str, action1: int, reward: float, state2: str,
               terminal: bool = False) -> None:
@@ -122,7 +134,9 @@ class QLearn:
             "exploration": self.exploration,
             "q_init": self.q_init,
             "first_visit": self.first_visit,
+            "step_size": self.step_size,
             "q": [[s, int(a), float(v)] for (s, a), v in sorted(self.q.items())],
+            "visits": [[s, int(a), int(n)] for (s, a), n in sorted(self.visits.items())],
             "rng_state": _to_lists(self.rng.getstate()),
         }
 
@@ -133,7 +147,9 @@ class QLearn:
         if fmt != FORMAT:
             raise ValueError(f"not a QLearn table: format is {fmt!r}, expected {FORMAT!r}")
         ql = cls(d["actions"], d["epsilon"], d["alpha"], d["gamma"], exploration=d.get("exploration", "noise"),
-                 q_init=d.get("q_init", 0.0), first_visit=d.get("first_visit", "reward"))
+                 q_init=d.get("q_init", 0.0), first_visit=d.get("first_visit", "reward"),
+                 step_size=d.get("step_size", "constant"))
         ql.q = {(str(s), int(a)): float(v) for s, a, v in d["q"]}
+        ql.visits = {(str(s), int(a)): int(n) for s, a, n in d.get("visits", [])}
         ql.rng.setstate(_to_tuples(d["rng_state"]))
         return ql

@@ -61,7 +61,8 @@ class QLearningTrainer(Learner):
         else:
             self.qlearn = QLearn(actions=range(self.n_actions), epsilon=params.epsilon, alpha=params.alpha,
                                  gamma=params.gamma, seed=params.seed, exploration=params.exploration,
-                                 q_init=params.q_init, first_visit=params.first_visit)
+                                 q_init=params.q_init, first_visit=params.first_visit,
+                                 step_size=params.step_size)
             self.state = TrainingState()
             self.initial_epsilon = params.epsilon
         self.ledger = RunLedger(run, task, params.nepisodes, self.state, self, hooks,
@@ -89,7 +90,7 @@ class QLearningTrainer(Learner):
         params = self.params
         there: dict[str, Any] = {"alpha": qlearn.alpha, "gamma": qlearn.gamma, "epsilon": initial_epsilon,
                                  "exploration": qlearn.exploration, "q_init": qlearn.q_init,
-                                 "first_visit": qlearn.first_visit}
+                                 "first_visit": qlearn.first_visit, "step_size": qlearn.step_size}
         try:
             began = load_yaml_file(self.run.params_yaml)
         except ParamError:
@@ -160,7 +161,7 @@ class QLearningTrainer(Learner):
 
     def _back_to_episode_start(self) -> None:
         """The Q-learner as it was when the episode that could not finish started."""
-        self.qlearn.q, self.qlearn.epsilon, rng_state = self._episode_start
+        self.qlearn.q, self.qlearn.visits, self.qlearn.epsilon, rng_state = self._episode_start
         self.qlearn.rng.setstate(rng_state)
 
     def train(self) -> dict[str, Any]:
@@ -171,7 +172,8 @@ class QLearningTrainer(Learner):
         ledger.start()
         first = True
         while state.episode < params.nepisodes and not self.should_stop():
-            self._episode_start = (dict(self.qlearn.q), self.qlearn.epsilon, self.qlearn.rng.getstate())
+            self._episode_start = (dict(self.qlearn.q), dict(self.qlearn.visits), self.qlearn.epsilon,
+                                   self.qlearn.rng.getstate())
             with ledger.saved_on_stop(rollback=self._back_to_episode_start):
                 episode, highest = self._episode(first)
             first = False
