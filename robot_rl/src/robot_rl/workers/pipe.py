@@ -29,11 +29,11 @@ import select
 import shutil
 import signal
 import tempfile
-import threading
 import time
 import traceback
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from multiprocessing import resource_tracker
 from pathlib import Path
 from typing import Any
 
@@ -68,21 +68,18 @@ def run_as_batch() -> None:
 
 
 @contextmanager
-def _workers_born_ignoring_sigint() -> Iterator[None]:
-    """Processes started in the block ignore SIGINT from their first instruction (an ignored signal stays ignored
-    across exec; multiprocessing's spawn resets the signal mask and the handlers, not SIG_IGN): a Ctrl-C while a
-    worker imports must not end it with a traceback. Meanwhile SIGINT is blocked here, so that one sent to this
-    process waits, pending, for its own handler. Outside the main thread (no handler can be set there) the block
-    does nothing."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
+def _workers_born_blocking_sigint() -> Iterator[None]:
+    """Processes started in the block are born with SIGINT blocked (spawn's fork and exec keep the signal mask),
+    so that a Ctrl-C while a worker imports waits, pending, until the worker ignores SIGINT and discards it:
+    it cannot end the worker with a traceback. Only the calling thread blocks SIGINT meanwhile, and this process
+    keeps its handler: a SIGINT sent to it then is handled by another thread or when the block ends (before, the
+    block also set SIG_IGN, process-wide, and a SIGINT that reached one of rospy's threads then was lost).
+    multiprocessing's resource tracker is started first: starting it unblocks SIGINT (bpo-33613's mask)."""
+    resource_tracker.ensure_running()
     blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    handler = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, handler)
         signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
 
 
@@ -109,7 +106,8 @@ def _worker(index: int, recipe: WorkerRecipe, conn: multiprocessing.connection.C
     parent = os.getppid()
     set_pdeathsig(signal.SIGTERM)
     run_as_batch()  # before its master and sim node start: they inherit it
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # as it was born (_workers_born_ignoring_sigint)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # then a Ctrl-C pending since its birth is discarded
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # (_workers_born_blocking_sigint)
     signal.signal(signal.SIGTERM, _raise_system_exit)  # ends the worker through the finally below
     env, sim = None, None
     parent_gone, closing = False, False  # whether the pipe closed without a "close"; whether "close" came
@@ -187,7 +185,7 @@ class EnvWorkers:
                 parent, child = context.Pipe()
                 process = context.Process(target=_worker, args=(i, recipe, child), name=f"robot_rl-worker{i}",
                                           daemon=True)
-                with _workers_born_ignoring_sigint():
+                with _workers_born_blocking_sigint():
                     process.start()
                 child.close()
                 self._conns.append(parent)
