@@ -25,7 +25,7 @@ from moving_cube_training.robot import MOVING_CUBE
 from workspace_tools.bench.common import stat_fields
 from workspace_tools.launch_reaper import descendants
 from workspace_tools.paths import PROGRAMS, REPO
-from workspace_tools.processes import Processes, RosMaster, free_port, processes_using, wait_for
+from workspace_tools.processes import Processes, RosMaster, free_port, processes_using, stop, wait_for
 from workspace_tools.training_launch import write_cube_training_launch
 
 TRAIN = ["rosrun", "workspace_tools", "roslaunch_checked.py"]  # what ./ws run starts
@@ -601,9 +601,18 @@ def test_ctrl_c_in_the_middle_of_a_log_line_ends_the_node(master, tmp_path):
 
 
 def sim_time(master: RosMaster) -> float:
-    """The sim's time from /gazebo/get_world_properties (0 while the service is not up yet)."""
-    result = master.run(["rosservice", "call", "/gazebo/get_world_properties"], timeout=30)
-    return float(yaml.safe_load(result.stdout)["sim_time"]) if result.returncode == 0 else 0.0
+    """The sim's time from /gazebo/get_world_properties; 0 while the service is not up yet, or when the call has
+    not answered within 10 s (then the next poll asks again: once in some ten clean-clone runs one rosservice
+    process hung for 30 s, and that ended the test)."""
+    call = master.start(["rosservice", "call", "/gazebo/get_world_properties"], stdout=subprocess.PIPE,
+                        stderr=subprocess.PIPE, text=True)
+    try:
+        stdout, _ = call.communicate(timeout=10)
+    except subprocess.TimeoutExpired:
+        stop(call)
+        call.communicate()
+        return 0.0
+    return float(yaml.safe_load(stdout)["sim_time"]) if call.returncode == 0 else 0.0
 
 
 def test_ctrl_c_on_a_sim_running_as_fast_as_it_can_ends_it_at_once(master, tmp_path):
@@ -613,9 +622,14 @@ def test_ctrl_c_on_a_sim_running_as_fast_as_it_can_ends_it_at_once(master, tmp_p
     with open(log, "w") as out:
         launch = master.start(["roslaunch", "pybullet_sim", "cube_sim.launch", "paused:=false", "real_time_factor:=0",
                                "robot_state_publisher:=false"], stdout=out, stderr=subprocess.STDOUT)
-    wait_for(lambda: sim_time(master) > 0.5, 60, "the running cube sim's time (/gazebo/get_world_properties) > 0.5 s")
-    launch.send_signal(signal.SIGINT)
-    assert launch.wait(60) == 0, log.read_text()[-3000:]
+    try:
+        wait_for(lambda: sim_time(master) > 0.5, 90,
+                 f"the running cube sim's time (/gazebo/get_world_properties) > 0.5 s (its log: {log})")
+        launch.send_signal(signal.SIGINT)
+        assert launch.wait(60) == 0, log.read_text()[-3000:]
+    finally:
+        if launch.poll() is None:  # the test failed: its launch goes, and the failure is the test's alone
+            stop(launch)
     output = log.read_text()
     assert "escalating" not in output and "Traceback" not in output, output[-3000:]
 
