@@ -10,6 +10,17 @@ import pytest
 from robot_rl.workers.pipe import _workers_born_blocking_sigint
 
 
+@pytest.fixture(autouse=True)
+def python_sigint_handler():
+    """Python's own SIGINT handler for the test, whatever pytest's is (started as a background job, as CI's
+    ./ws test is, it ignores SIGINT, and so would a process it spawns)."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def test_a_process_started_in_the_block_is_born_with_sigint_blocked():
     """What the workers rely on: spawn's fork and exec keep the signal mask, so a Ctrl-C pends in a worker until
     it ignores SIGINT (robot_rl.workers.pipe._worker). The child sends itself SIGINT: blocked, it pends and the
