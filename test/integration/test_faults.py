@@ -604,15 +604,11 @@ def sim_time(master: RosMaster) -> float:
     """The sim's time from /gazebo/get_world_properties; 0 while the service is not up yet, or when the call has
     not answered within 10 s (then the next poll asks again: once in some ten clean-clone runs one rosservice
     process hung for 30 s, and that ended the test)."""
-    call = master.start(["rosservice", "call", "/gazebo/get_world_properties"], stdout=subprocess.PIPE,
-                        stderr=subprocess.PIPE, text=True)
     try:
-        stdout, _ = call.communicate(timeout=10)
-    except subprocess.TimeoutExpired:
-        stop(call)
-        call.communicate()
+        result = master.run(["rosservice", "call", "/gazebo/get_world_properties"], timeout=10)
+    except AssertionError:  # run()'s "did not finish within 10 s", the call stopped
         return 0.0
-    return float(yaml.safe_load(stdout)["sim_time"]) if call.returncode == 0 else 0.0
+    return float(yaml.safe_load(result.stdout)["sim_time"]) if result.returncode == 0 else 0.0
 
 
 def test_ctrl_c_on_a_sim_running_as_fast_as_it_can_ends_it_at_once(master, tmp_path):
