@@ -106,7 +106,7 @@ def test_every_process_is_gone_after_an_exception_in_a_worker(tmp_path):
 def test_every_process_is_gone_after_sigint_to_the_process_group(tmp_path):
     log = tmp_path / "script.log"
     with open(log, "w") as err:
-        script = subprocess.Popen([sys.executable, str(PROGRAMS / "vector_sigint.py")],
+        script = subprocess.Popen([sys.executable, str(PROGRAMS / "vector_sigint.py"), str(tmp_path / "workers")],
                                   stdout=subprocess.PIPE, stderr=err, text=True, start_new_session=True)
     try:
         line = script.stdout.readline()  # bounded below: the script prints once its two workers step
