@@ -194,6 +194,20 @@ def test_an_adapting_attitude_assist_with_env_workers_gives_one_line_and_writes_
     assert not (tmp_path / "results").exists()
 
 
+def test_table_checks_on_two_env_workers_give_one_line_and_write_nothing(master, tmp_path):
+    """The Q-table's checks play the trainer's one env: two env workers are refused before the run folder."""
+    config = tmp_path / "hop_in_place_checked.yaml"
+    document = yaml.safe_load((REPO / "hopper_training" / "config" / "hop_in_place.yaml").read_text())
+    config.write_text(yaml.safe_dump({**document, "selection": {"every": 10}}))
+    result = master.run([*HOPPER_TRAINING, "task:=hop_in_place", "backend:=direct", "envs:=2", f"config:={config}",
+                         f"results_dir:={tmp_path / 'results'}"], timeout=240)
+    output = result.stdout + result.stderr
+    assert result.returncode == 1, output[-3000:]
+    line = one_line(output, "parameter 'selection/every' (10) checks the Q-table during training")
+    assert str(config) in line and "agent:=qlearn with envs:=1 only (this run: agent:=qlearn, envs:=2)" in line
+    assert not (tmp_path / "results").exists()
+
+
 @pytest.mark.parametrize("launch, args, folder, expected", [
     (HOPPER_TRAINING, ["task:=residual_forward", "agent:=dqn"], "residual_forward-dqn",
      "agent dqn on MonopedResidualForward-v0: DQN needs Discrete actions, the task has Box("),

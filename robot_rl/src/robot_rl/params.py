@@ -212,6 +212,18 @@ class AttitudeAssist(Params):
 
 
 @dataclass(frozen=True, kw_only=True)
+class TableSelection(Params):
+    """Tabular Q-learning's check of its greedy table during training (robot_rl.agents.qlearn.selection): every
+    `every` episodes the table plays `episodes` greedy episodes from a reset seeded with `seed`, and the best one by
+    the task's headline metric is kept as qtable_best.json beside qtable.json."""
+
+    every: int = param(low=0, high=MAX_COUNT, default=0, doc="training episodes between two checks (0: no checks)")
+    episodes: int = param(low=1, high=MAX_COUNT, default=20, doc="greedy episodes a check plays")
+    seed: int = param(low=0, high=MAX_SEED, default=500,
+                      doc="the checks' reset seed: the same episodes every check; take one that evaluation does not")
+
+
+@dataclass(frozen=True, kw_only=True)
 class TaskParams(Params):
     """What every task's YAML holds: the tutorials' Q-learning keys and the env step."""
 
@@ -233,6 +245,9 @@ class TaskParams(Params):
     step_size: str = param(choices=("constant", "visits"), default="constant",
                            doc="constant: every update steps alpha (tutorial); visits: a pair's n-th update steps "
                                "max(alpha, 1/(n+1))")
+    selection: TableSelection = param(default=TableSelection(),
+                                      doc="tabular Q-learning only: check the greedy table every few episodes on "
+                                          "seeded episodes and keep the best as qtable_best.json (off by default)")
     push_speed: float = param(low=0.0, high=10.0, default=0.0,
                               doc="m/s: the env kicks the base this much horizontally, in a random direction, at "
                                   "random times (robot_rl.envs.pushes; 0: never; evaluate.py --push sets it)")

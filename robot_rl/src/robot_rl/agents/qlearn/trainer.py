@@ -8,8 +8,9 @@ RunLedger's. A checkpoint (qtable.json: Q-table, epsilon, RNG, counters; JSON, a
 resume: episodes logged after it are dropped and re-run, never repeated. When an episode cannot
 finish (Ctrl-C, the sim gone), the Q-learner goes back to where that episode started before the
 ledger saves the run: nothing completed is lost, and resuming repeats exactly what the uninterrupted
-run would have done. With N envs the trainer is robot_rl.agents.qlearn.vector_trainer's, whose `make_trainer`
-and robot_rl.agents.qlearn.policy's `greedy_policy` are the agent registry's entry points.
+run would have done. With the params' `selection` on, the greedy table is checked every few episodes and the
+best kept (robot_rl.agents.qlearn.selection). With N envs the trainer is robot_rl.agents.qlearn.vector_trainer's,
+whose `make_trainer` and robot_rl.agents.qlearn.policy's `greedy_policy` are the agent registry's entry points.
 """
 from __future__ import annotations
 
@@ -26,6 +27,7 @@ from ...runs.ledger import DEFAULT_HOOKS, Learner, RunLedger, TrainingHooks, Tra
 from ...runs.results import EpisodeRecord, RunDirectory
 from ...task import Episode, TaskSpec, episode_duration
 from .qlearn import QLearn
+from .selection import BEST_CHECKPOINT, SelectionLog, SelectionState, check_due, play_greedy, score, training_reseed
 
 CHECKPOINT_FORMAT = "robot_rl.training_checkpoint/2"
 
@@ -36,6 +38,10 @@ def check_fit(action_space: gymnasium.spaces.Space[Any], observation_space: gymn
     if not isinstance(action_space, gymnasium.spaces.Discrete):
         raise ParamError(f"{source}: tabular Q-learning needs Discrete actions, the task has {action_space} "
                          f"(try agent:=sac or ppo; the monoped's action_mode targets is for the deep agents)")
+
+
+def _listed(mapping: dict[str, Any]) -> str:
+    return ", ".join(f"{key} {value!r}" for key, value in sorted(mapping.items()))
 
 
 class QLearningTrainer(Learner):
@@ -54,8 +60,11 @@ class QLearningTrainer(Learner):
         self.n_actions = int(space.n)
         self.running_step = params.running_step
         self._hooks, self._resuming = hooks, ""
+        self.selection, self.selection_log = SelectionState(), SelectionLog(run.path)
+        self._reset_seed: int | None = None  # the next training reset's seed, after a check
         if resume:
             self.qlearn, self.state, self.initial_epsilon = run.prepare_resume(self._restore)
+            self.selection_log.keep_until(self.state.episode)
             self._resuming = (f"Resuming {run.path} after episode {self.state.episode} "
                               f"(epsilon {self.qlearn.epsilon:.4f})")
         else:
@@ -81,6 +90,13 @@ class QLearningTrainer(Learner):
         if not isinstance(initial_epsilon, (int, float)):
             raise ValueError(f"initial_epsilon {initial_epsilon!r} is not a number")
         self._check_learning_params(qlearn, float(initial_epsilon))
+        if "selection" in checkpoint:
+            self.selection = SelectionState.from_dict(checkpoint["selection"])
+            there, here = checkpoint["selection"]["params"], self.params.selection.to_mapping()
+            if self.selection.checked_at and there != here:
+                raise ValueError(f"its table checks ran with selection ({_listed(there)}), this run's is "
+                                 f"({_listed(here)}): a best table is picked on the same episodes throughout; resume "
+                                 "with the params the run began with")
         return qlearn, state, float(initial_epsilon)
 
     def _check_learning_params(self, qlearn: QLearn, initial_epsilon: float) -> None:
@@ -102,10 +118,14 @@ class QLearningTrainer(Learner):
             raise ValueError(f"its learning params differ from this run's ({differ}): resume with the params the run "
                              "began with")
 
+    def _checkpoint_state(self) -> dict[str, Any]:
+        return {"format": CHECKPOINT_FORMAT, "task": self.task.env_id, "episode": self.state.episode,
+                "qlearn": self.qlearn.to_dict(), "state_key": self.state_key.to_dict(),
+                "initial_epsilon": self.initial_epsilon, "state": dataclasses.asdict(self.state),
+                "selection": {**self.selection.to_dict(), "params": self.params.selection.to_mapping()}}
+
     def save_checkpoint(self) -> None:
-        self.run.checkpoint({"format": CHECKPOINT_FORMAT, "task": self.task.env_id, "episode": self.state.episode,
-                             "qlearn": self.qlearn.to_dict(), "state_key": self.state_key.to_dict(),
-                             "initial_epsilon": self.initial_epsilon, "state": dataclasses.asdict(self.state)})
+        self.run.checkpoint(self._checkpoint_state())
 
     def episode_label(self, epsilon: float) -> str:
         return f"alpha: {round(self.qlearn.alpha, 2)} - gamma: {round(self.qlearn.gamma, 2)} - epsilon: " \
@@ -118,7 +138,8 @@ class QLearningTrainer(Learner):
         lengths = sorted(self.state.last_time_steps)
         return {"overall_score": sum(lengths) / len(lengths) if lengths else None,
                 "best_100_score": sum(lengths[-100:]) / len(lengths[-100:]) if lengths else None,
-                "q_table_entries": len(self.qlearn.q), "final_epsilon": self.qlearn.epsilon}
+                "q_table_entries": len(self.qlearn.q), "final_epsilon": self.qlearn.epsilon,
+                **({"selection": self.selection.to_dict()} if self.params.selection.every else {})}
 
     def closing_lines(self, summary: dict[str, Any], last: Sequence[EpisodeRecord]) -> list[str]:
         """The tutorials' closing lines, without their reduce and division-by-zero bugs."""
@@ -137,7 +158,8 @@ class QLearningTrainer(Learner):
         qlearn, env = self.qlearn, self.env
         self.decay_epsilon()
         # The first episode of a (resumed) run restarts sim time and sensor noise from the seeds.
-        observation, _ = env.reset(seed=self.params.seed if first else None)
+        observation, _ = env.reset(seed=self.params.seed if first else self._reset_seed)
+        self._reset_seed = None
         state = self.state_key.key(observation)
         cumulated, highest = 0.0, -math.inf
         steps = 0
@@ -171,7 +193,12 @@ class QLearningTrainer(Learner):
             self._hooks.log(self._resuming)
         ledger.start()
         first = True
-        while state.episode < params.nepisodes and not self.should_stop():
+        while not self.should_stop():
+            if check_due(params.selection, self.selection, state.episode, params.nepisodes):
+                with ledger.saved_on_stop():
+                    self._check_table()
+            if state.episode >= params.nepisodes:
+                break
             self._episode_start = (dict(self.qlearn.q), dict(self.qlearn.visits), self.qlearn.epsilon,
                                    self.qlearn.rng.getstate())
             with ledger.saved_on_stop(rollback=self._back_to_episode_start):
@@ -180,3 +207,27 @@ class QLearningTrainer(Learner):
             ledger.episode_done(episode, highest, self.qlearn.epsilon)
             ledger.log_progress_if_due()
         return ledger.close(done=state.episode >= params.nepisodes)
+
+    def _check_table(self) -> None:
+        """Play the greedy table on the check's episodes (after a checkpoint of it), log its score, keep it as
+        qtable_best.json if it beats every earlier one, and checkpoint the result (selection.py)."""
+        selection, state, checked = self.params.selection, self.selection, self.state.episode
+        self.ledger.checkpoint()
+        episodes = play_greedy(self.env, self.qlearn, self.state_key, selection, self.params.nsteps,
+                               self.running_step)
+        table_score, mean_return = score(episodes, self.task)
+        better = table_score > state.best_score
+        state.checked_at = checked
+        if better:
+            state.best_score, state.best_episode = table_score, checked
+            RunDirectory(self.run.path, BEST_CHECKPOINT).checkpoint({**self._checkpoint_state(), "selected": {
+                "episode": checked, "score": table_score, "metric": self.task.headline_metric,
+                "episodes": selection.episodes, "seed": selection.seed}})
+        self.selection_log.append([checked, f"{table_score:.6g}", f"{mean_return:.6g}", f"{state.best_score:.6g}",
+                                   state.best_episode])
+        self._reset_seed = training_reseed(self.params.seed, checked)
+        self.ledger.checkpoint()
+        self._hooks.log(f"table check after episode {checked}: {self.task.headline_metric} {table_score:.3g} over "
+                        f"{selection.episodes} greedy episodes from seed {selection.seed}"
+                        f"{' (the best so far: ' + BEST_CHECKPOINT + ')' if better else ''}; best "
+                        f"{state.best_score:.3g} after episode {state.best_episode}")
