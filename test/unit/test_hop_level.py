@@ -25,6 +25,7 @@ from hopper_training.envs.hop_in_place import (
 )
 from hopper_training.scripted_policies import POLICIES
 from robot_rl import ParamError, evaluation, make_env
+from robot_rl.params import TableSelection
 
 PARAMS = HOP_IN_PLACE.default_params()
 
@@ -60,7 +61,7 @@ def test_the_push075_config_is_the_push_config_with_its_marked_keys_alone():
     strong = HOP_IN_PLACE.load_params(folder / "hop_in_place_push075.yaml")
     marked = {"alpha": 0.03, "gamma": 0.8, "epsilon_discount": 0.995, "epsilon_min": 0.02, "q_init": 14.0,
               "nepisodes": 1200, "push_speed": 0.75, "offset_min": 0.0, "offset_max": 0.06, "offset_levels": 4,
-              "speed_weight": 2.0}
+              "speed_weight": 2.0, "selection": TableSelection(every=100, episodes=20, seed=500)}
     assert strong == dataclasses.replace(pushed, **marked)
     assert offsets(strong) == pytest.approx([0.0, 0.02, 0.04, 0.06])
     text = (folder / "hop_in_place_push075.yaml").read_text()
