@@ -7,12 +7,12 @@
   evaluate.py --policy constant --action N [--task TASK] [the same options]
 
 RUN (also --run) is a run folder (training_results/<task>/<run>, or its `latest` link) or its checkpoint:
-qtable.json of tabular Q-learning, or agent.json of a deep agent (its greedy policy is the SB3 model's
-deterministic action, the model rebuilt from agent.json and its weights loaded from model.zip; needs
-requirements-deep.txt: ./ws setup deep). The checkpoint names the task (and a deep run's agent, see
-robot_rl.agents), the run's params.yaml gives its parameters. Each episode lasts until the
-task terminates it or `--horizon-s` seconds of sim time have passed (default: the task's). A task whose
-params have `initial_tilt` (the monoped's) starts every episode leaning by a random angle in
+qtable.json of tabular Q-learning (or qtable_best.json, the best of its checked tables: the params' selection), or
+agent.json of a deep agent (its greedy policy is the SB3 model's deterministic action, the model rebuilt from
+agent.json and its weights loaded from model.zip; needs requirements-deep.txt: ./ws setup deep). The checkpoint
+names the task (and a deep run's agent, see robot_rl.agents), the run's params.yaml gives its parameters. Each
+episode lasts until the task terminates it or `--horizon-s` seconds of sim time have passed (default: the task's).
+A task whose params have `initial_tilt` (the monoped's) starts every episode leaning by a random angle in
 `--initial-tilt LOW HIGH` rad (default 0.02 0.05; `0 0`: upright) in a random direction, drawn from the
 evaluation seed, so that no policy can lean on a perfectly upright start. The last output line is one
 JSON object: {"task", "episodes", "horizon_s", "seed", "initial_tilt", "greedy": {...}, "random": {...}},
@@ -274,7 +274,7 @@ def main(argv: Sequence[str], tasks: Sequence[TaskSpec[Any]], node_name: str,
     policies = policies or {}
     parser = OneLineParser(prog="evaluate.py", description=__doc__.splitlines()[0])
     parser.add_argument("--qtable", "--run", dest="run", type=Path,
-                        help="a run folder, or its qtable.json or agent.json (the greedy policy)")
+                        help="a run folder, or its qtable.json, qtable_best.json or agent.json (the greedy policy)")
     parser.add_argument("--policy", choices=("greedy", *policies, "constant"), default="greedy",
                         help="greedy: the trained run's (default); a hand-written policy of the robot's package; or "
                              "constant (--action N every step)")
