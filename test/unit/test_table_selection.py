@@ -9,7 +9,7 @@ import gymnasium
 import pytest
 
 from moving_cube_training.envs.one_disk_walk import ONE_DISK_WALK
-from robot_rl import QLearningTrainer, RunDirectory, TrainingHooks, make_env
+from robot_rl import QLearningTrainer, RunDirectory, TrainingHooks, VectorQLearningTrainer, make_env, make_vector_env
 from robot_rl.agents.qlearn.qlearn import QLearn
 from robot_rl.agents.qlearn.selection import (
     BEST_CHECKPOINT,
@@ -78,6 +78,19 @@ def test_without_selection_nothing_is_checked(tmp_path):
     run, summary, log = train(tmp_path, cube_params(every=0, nepisodes=3))
     assert not (run.path / "selection.csv").exists() and not (run.path / BEST_CHECKPOINT).exists()
     assert "selection" not in summary and not any("table check" in line for line in log)
+
+
+def test_the_vector_trainer_refuses_checks_before_it_writes(tmp_path):
+    params = cube_params()
+    run = RunDirectory.create(tmp_path, "moving_cube", params.to_mapping(), ONE_DISK_WALK.metric_names)
+    before = sorted(path.name for path in run.path.iterdir())
+    env = make_vector_env(ONE_DISK_WALK, 2, backend="direct", seed=params.seed, params=params)
+    try:
+        with pytest.raises(ValueError, match="selection/every 2: the table checks play one env; the 2 envs"):
+            VectorQLearningTrainer(env, ONE_DISK_WALK, params, run)
+    finally:
+        env.close()
+    assert sorted(path.name for path in run.path.iterdir()) == before
 
 
 def test_a_check_plays_the_same_episodes_and_leaves_the_learner_as_it_was(tmp_path):

@@ -12,6 +12,7 @@ from gymnasium.utils.env_checker import check_env
 import hopper_training
 import moving_cube_training
 from robot_rl import TASKS, Episode, TrainingState, find_task, make_env, restored_state
+from robot_rl.task import play_episode
 
 ALL_TASKS = [*moving_cube_training.TASKS, *hopper_training.TASKS]
 IDS = [task.env_id for task in ALL_TASKS]
@@ -88,6 +89,20 @@ def test_reward_terms_in_info_sum_to_the_reward(task):
     finally:
         env.close()
     assert fell and "reward_fall" in seen_terms and len(seen_terms) >= 3
+
+
+def test_play_episode_stops_at_max_steps_and_repeats_from_its_seed():
+    task = find_task(moving_cube_training.TASKS, "one_disk_walk")
+    env = make_env(task, backend="direct", seed=0)
+    try:
+        def act(observation):
+            return 1
+        first = play_episode(env, act, 0.1, seed=9, max_steps=3)
+        again = play_episode(env, act, 0.1, seed=9, max_steps=3)
+    finally:
+        env.close()
+    assert (first.steps, first.duration) == (3, pytest.approx(0.3)) and not first.terminated
+    assert (again.steps, again.return_) == (first.steps, first.return_)
 
 
 @pytest.mark.parametrize("task", ALL_TASKS, ids=IDS)

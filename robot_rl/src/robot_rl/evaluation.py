@@ -68,7 +68,7 @@ from .policies import ScriptedPolicy, constant_policy, random_actions
 from .runs.loaded import LoadedRun
 from .runs.results import RunDirectory, RunFileError, aggregate
 from .runs.video import VideoRecorder
-from .task import Episode, TaskSpec, episode_duration, find_task, make_env
+from .task import TaskSpec, find_task, make_env, play_episode
 
 MAX_VIDEO_SIDE = 4096
 MAX_SEED = 2**31 - 1      # as a training's seed:= (ROS's int, numpy's seed)
@@ -153,19 +153,10 @@ def run_episodes(env: Any, policy: Callable[[np.ndarray], Any], episodes: int, t
     metrics: dict[str, list[Any]] = {name: [] for name in task.metric_names}
     reset_policy = getattr(policy, "reset", None)
     for _ in range(episodes):
-        observation, _ = env.reset()
         if reset_policy is not None:
             reset_policy()
-        total, steps, info, terminated = 0.0, 0, {}, False
-        while True:
-            observation, reward, terminated, truncated, info = env.step(policy(observation))
-            total += reward
-            steps += 1
-            if terminated or truncated:
-                break
-        returns.append(total)
-        episode = Episode(steps=steps, return_=total, terminated=terminated,
-                          duration=episode_duration(info, steps, running_step), info=info)
+        episode = play_episode(env, policy, running_step)
+        returns.append(episode.return_)
         for name, value in task.metrics(episode).items():
             metrics[name].append(value)
     return {**aggregate({"return": returns}), **aggregate(metrics)}

@@ -96,6 +96,22 @@ def episode_duration(info: Mapping[str, Any], steps: int, running_step: float) -
     return float(info.get("episode_time", steps * running_step))
 
 
+def play_episode(env: gymnasium.Env[Any, Any], act: Callable[[Any], Any], running_step: float, *,
+                 seed: int | None = None, max_steps: int | None = None) -> Episode:
+    """One episode of `act` (observation -> action) from env.reset(seed=seed), until it terminates, is truncated
+    or has taken `max_steps` steps (None: the env's own limit). No learning: evaluation's and the checks' loop."""
+    observation, _ = env.reset(seed=seed)
+    total, steps, terminated = 0.0, 0, False
+    info: Mapping[str, Any] = {}
+    while max_steps is None or steps < max_steps:
+        observation, reward, terminated, truncated, info = env.step(act(observation))
+        total, steps = total + float(reward), steps + 1
+        if terminated or truncated:
+            break
+    return Episode(steps=steps, return_=total, terminated=terminated,
+                   duration=episode_duration(info, steps, running_step), info=info)
+
+
 @dataclass(frozen=True)
 class TaskSpec(Generic[P]):
     name: str                                   # `task:=` in the launch files; the default YAML is config/<name>.yaml

@@ -279,7 +279,7 @@ def run_training_node(tasks: Sequence[TaskSpec[Any]], node_name: str) -> int:
         agent.check_fit(env, agent_params, f"agent {agent.name} on {task.env_id}")
         if params.attitude_assist.adapt_every and assist_setter(env) is None:
             raise ParamError(f"{node.config_file}: {needs_the_env_in_process(params.attitude_assist)}")
-        if params.selection.every and (agent.name != "qlearn" or node.envs > 1):
+        if params.selection.every and (not agent.table_checks or node.envs > 1):
             raise ParamError(f"{node.config_file}: parameter 'selection/every' ({params.selection.every}) checks the "
                              "Q-table during training: agent:=qlearn with envs:=1 only (this run: "
                              f"agent:={agent.name}, envs:={node.envs}); set it to 0")

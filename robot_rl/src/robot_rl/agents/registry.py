@@ -66,6 +66,8 @@ class AgentSpec:
     needs_ray: bool = False          # needs requirements-distributed.txt (Ray, RLlib) even without cluster:=
     episodes: str = ""               # "module:attr" of episode_budget(agent_params) -> int: the agent trains its
                                      # params' own count of episodes, not the task's nepisodes ("": nepisodes)
+    table_checks: bool = False       # plays the task params' `selection` checks (with envs:=1; see
+                                     # robot_rl.agents.qlearn.selection); other agents refuse selection/every > 0
 
     def results_name(self, task: TaskSpec[Any]) -> str:
         return task.results_name + self.results_suffix
@@ -139,7 +141,8 @@ AGENTS: dict[str, AgentSpec] = {spec.name: spec for spec in (
     AgentSpec("qlearn", "tabular Q-learning, the tutorials'", QTABLE_CHECKPOINT, "", needs_deep=False,
               trainer="robot_rl.agents.qlearn.vector_trainer:make_trainer",
               vector_env="robot_rl.workers.vector_env:make_vector_env",
-              policy="robot_rl.agents.qlearn.policy:greedy_policy", fit="robot_rl.agents.qlearn.trainer:check_fit"),
+              policy="robot_rl.agents.qlearn.policy:greedy_policy", fit="robot_rl.agents.qlearn.trainer:check_fit",
+              table_checks=True),
     AgentSpec("dqn", "Stable-Baselines3's DQN", DEEP_CHECKPOINT, "-dqn", needs_deep=True,
               trainer="robot_rl.agents.sb3.trainer:make_trainer", vector_env="robot_rl.agents.sb3.vec_env:make_vec_env",
               policy="robot_rl.agents.sb3.policy:greedy_policy", params="robot_rl.agents.sb3.params:DqnParams",

@@ -30,7 +30,7 @@ import numpy as np
 
 from ...atomic import write_text_atomic
 from ...params import TableSelection
-from ...task import Episode, StateKey, TaskSpec, episode_duration
+from ...task import Episode, StateKey, TaskSpec, play_episode
 from .qlearn import QLearn
 
 SELECTION_CSV = "selection.csv"
@@ -76,20 +76,11 @@ def play_greedy(env: gymnasium.Env[Any, Any], qlearn: QLearn, state_key: StateKe
     Reads `qlearn`, never changes it (its tie breaks use an RNG of its own)."""
     greedy = QLearn.from_dict(qlearn.to_dict())
     greedy.rng.seed(selection.seed)
-    episodes = []
-    for i in range(selection.episodes):
-        observation, _ = env.reset(seed=selection.seed if i == 0 else None)
-        total, steps, terminated = 0.0, 0, False
-        info: dict[str, Any] = {}
-        while steps < nsteps:
-            action = greedy.greedy_action(state_key.key(observation))
-            observation, reward, terminated, truncated, info = env.step(action)
-            total, steps = total + float(reward), steps + 1
-            if terminated or truncated:
-                break
-        episodes.append(Episode(steps=steps, return_=total, terminated=terminated,
-                                duration=episode_duration(info, steps, running_step), info=info))
-    return episodes
+
+    def act(observation: Any) -> Any:
+        return greedy.greedy_action(state_key.key(observation))
+    return [play_episode(env, act, running_step, seed=selection.seed if i == 0 else None, max_steps=nsteps)
+            for i in range(selection.episodes)]
 
 
 def score(episodes: Sequence[Episode], task: TaskSpec[Any]) -> tuple[float, float]:

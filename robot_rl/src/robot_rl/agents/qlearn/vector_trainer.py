@@ -28,7 +28,7 @@ from typing import Any
 import gymnasium
 
 from ...params import Params, TaskParams
-from ...runs.ledger import TrainingHooks
+from ...runs.ledger import DEFAULT_HOOKS, TrainingHooks
 from ...runs.results import RunDirectory
 from ...task import Episode, TaskSpec, episode_duration
 from ...workers.base import WorkerRestarted
@@ -41,6 +41,13 @@ class VectorQLearningTrainer(QLearningTrainer):
     """QLearningTrainer's Q-learner and ledger, trained from the N envs of `env`."""
 
     env: RobotVectorEnv  # type: ignore[assignment]  # QLearningTrainer's env, N of them
+
+    def __init__(self, env: RobotVectorEnv, task: TaskSpec[Any], params: TaskParams, run: RunDirectory,
+                 hooks: TrainingHooks = DEFAULT_HOOKS, resume: bool = False):
+        if params.selection.every:
+            raise ValueError(f"selection/every {params.selection.every}: the table checks play one env; the "
+                             f"{env.num_envs} envs of a vector env train without them (set it to 0, or envs:=1)")
+        super().__init__(env, task, params, run, hooks, resume)  # type: ignore[arg-type]  # N envs, as `env` above
 
     def train(self) -> dict[str, Any]:
         if self._resuming:
