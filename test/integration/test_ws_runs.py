@@ -69,6 +69,30 @@ def test_ws_exec_in_another_terminal_meets_the_run_s_master(tmp_path):
     assert not (tmp_path / "runs" / "999999.json").exists()
 
 
+def test_two_runs_started_together_take_two_masters(tmp_path):
+    """Two `./ws run` started at once, no ROS_MASTER_URI: the first to claim 11311 takes it (if it is free), the
+    other a free port; before the claim both could see 11311 free and meet on one master."""
+    command = [str(REPO / "ws"), "run", "nepisodes:=100000", "video:=false", f"results_dir:={tmp_path / 'results'}"]
+    runs = [subprocess.Popen(command, env=ws_env(tmp_path), cwd=tmp_path, stdout=subprocess.PIPE,
+                             stderr=subprocess.STDOUT, text=True, start_new_session=True) for _ in range(2)]
+    outputs = []
+    try:
+        records = wait_for(lambda: (lambda found: found if len(found) == 2 else None)(
+            sorted((tmp_path / "runs").glob("*.json"))), 180,
+            "two records of ./ws run in WS_RUNS_DIR (roslaunch_checked.py writes one once its master is up)")
+        masters = {json.loads(record.read_text())["master_uri"] for record in records}
+        assert len(masters) == 2, masters
+    finally:
+        for run in runs:
+            run.send_signal(signal.SIGINT)
+        for run in runs:
+            try:
+                outputs.append(run.communicate(timeout=60)[0])
+            finally:
+                stop(run)
+    assert [run.returncode for run in runs] == [130, 130], [output[-2000:] for output in outputs]
+
+
 def test_a_run_ends_with_its_block_and_a_resume_of_it_says_it_is_complete(tmp_path):
     config = cube_config(tmp_path, nepisodes=3, nsteps=10)
     result, output = ws(tmp_path, "run", "run:=first", f"config:={config}", "results_dir:=results")

@@ -14,12 +14,13 @@ DOCUMENTED = {"run", "help", "python", "exec", "test", "lint", "bench", "rviz", 
 
 
 @pytest.fixture(autouse=True)
-def no_exec(monkeypatch):
+def no_exec(monkeypatch, tmp_path):
     """Nothing is exec'd; a command's argv is recorded instead. The variables ./ws run sets for the process it would
     exec are put back after each test (setenv records them as unset, so the run's values do not leak into the
-    tests after these: robot_rl.runs.next_steps reads WS_RUN)."""
+    tests after these: robot_rl.runs.next_steps reads WS_RUN). Runs and port claims go to a folder of the test's."""
     for variable in (cli.WS_RUN_VARIABLE, "WS_RUN_RECORD", "ROS_MASTER_URI"):
         monkeypatch.setenv(variable, os.environ.get(variable, ""))
+    monkeypatch.setenv("WS_RUNS_DIR", str(tmp_path / "runs"))
     ran: list[list[str]] = []
     monkeypatch.setattr(os, "execvp", lambda file, argv: ran.append(list(argv)))
     monkeypatch.setattr(cli, "_agent_needs", lambda args: ["requirements requirements-deep.txt"]

@@ -2,14 +2,18 @@
 another terminal reach the run's ROS master without anyone exporting ROS_MASTER_URI.
 
 `./ws run` takes ROS's default master port (11311) when it is free, a free port only when it is taken
-(`run_master_uri`). roslaunch_checked.py, once the master is up, writes one JSON file per run into the runs
-folder (`.ws/runs/`, or $WS_RUNS_DIR): the launcher's pid, the master's URI, roslaunch's /run_id, the command and
-when it started; it removes the file when it ends. A file outlives its run only if the launcher is killed with
-SIGKILL: `live_runs()` then finds its pid gone and removes it, and skips any run whose master does not answer
-with the /run_id recorded (a later master on the same port is another run's).
+(`run_master_uri`). A run that takes 11311 claims it in the runs folder (`port-11311.claim`, its pid: ./ws execs
+into the launcher) before its master is up, so that a second `./ws run` started in the same second takes another
+port instead of the same one; a claim whose process is gone counts for nothing. roslaunch_checked.py, once the
+master is up, writes one JSON file per run into the runs folder (`.ws/runs/`, or $WS_RUNS_DIR): the launcher's pid,
+the master's URI, roslaunch's /run_id, the command and when it started; it removes the file when it ends. A file
+outlives its run only if the launcher is killed with SIGKILL: `live_runs()` then finds its pid gone and removes it,
+and skips any run whose master does not answer with the /run_id recorded (a later master on the same port is
+another run's).
 """
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import socket
@@ -49,14 +53,32 @@ def free_port() -> int:
         return int(probe.getsockname()[1])
 
 
+def claim_default_port(folder: Path) -> bool:
+    """Whether this process takes DEFAULT_PORT: free, and claimed by no other live process (a run whose master is
+    not up yet). If so, the claim is this process's (written under a lock, so two callers never both take it)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    claim = folder / f"port-{DEFAULT_PORT}.claim"
+    with open(folder / "ports.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            holder = int(claim.read_text())
+        except (OSError, ValueError):
+            holder = 0
+        if holder > 0 and holder != os.getpid() and _alive(holder) or not port_is_free(DEFAULT_PORT):
+            return False
+        claim.write_text(f"{os.getpid()}\n")
+    return True
+
+
 def run_master_uri() -> tuple[str, str]:
-    """(ROS_MASTER_URI for a new run, the one line that says which): 11311 if free, else a free port."""
-    if port_is_free(DEFAULT_PORT):
+    """(ROS_MASTER_URI for a new run, the one line that says which): 11311 if free and unclaimed (claimed for this
+    process then), else a free port."""
+    if claim_default_port(runs_folder()):
         return f"http://127.0.0.1:{DEFAULT_PORT}", f"this run's ROS master: http://127.0.0.1:{DEFAULT_PORT} (./ws " \
                                                    f"plot, rviz and exec in another terminal join it)"
     uri = f"http://127.0.0.1:{free_port()}"
-    return uri, f"port {DEFAULT_PORT} is taken (another ROS master?): this run's ROS master is {uri} (./ws plot, " \
-                f"rviz and exec in another terminal join it)"
+    return uri, f"port {DEFAULT_PORT} is taken (another ROS master, or a run starting?): this run's ROS master is " \
+                f"{uri} (./ws plot, rviz and exec in another terminal join it)"
 
 
 @dataclass(frozen=True)
