@@ -1,5 +1,6 @@
 """The monoped's hop-level task (task:=hop_in_place, one decision per hop) trained by tabular Q-learning over ROS
-(hopper_training's main.launch on a private master) for three short episodes, then evaluate.py on its Q-table."""
+(hopper_training's main.launch on a private master) for three short episodes with its greedy table checked after
+episodes 2 and 3 (params' selection), then evaluate.py on its Q-table and on the table the checks kept."""
 import csv
 import json
 import time
@@ -20,6 +21,7 @@ def test_three_hop_level_episodes_over_ros_then_evaluate(ros_master, tmp_path):
     config = yaml.safe_load(HOP_IN_PLACE.config_path.read_text())
     assert config["running_step"] == RUNNING_STEP
     config["nsteps"] = NSTEPS
+    config["selection"] = {"every": 2, "episodes": 2, "seed": 500}
     config_file = tmp_path / "hop_level.yaml"
     config_file.write_text(yaml.safe_dump(config))
     results = tmp_path / "results"
@@ -52,16 +54,25 @@ def test_three_hop_level_episodes_over_ros_then_evaluate(ros_master, tmp_path):
     assert {action for _, action, _ in qtable["qlearn"]["q"]} <= set(range(6)) and qtable["qlearn"]["q"]
     summary = json.loads((run / "summary.json").read_text())
     assert summary["completed"] is True and summary["env_steps"] == sum(int(row["steps"]) for row in rows)
+    with open(run / "selection.csv", newline="") as f:
+        checks = list(csv.DictReader(f))
+    assert [int(row["episode"]) for row in checks] == [2, 3] and log.count("table check after episode") == 2
+    scores = [float(row["score"]) for row in checks]
+    assert all(0.0 < score <= NSTEPS * RUNNING_STEP + 1e-9 for score in scores), checks
+    kept = json.loads((run / "qtable_best.json").read_text())
+    assert kept["selected"]["episode"] == summary["selection"]["best_episode"] == [2, 3][scores.index(max(scores))]
 
-    evaluation = ros_master.run(["rosrun", "hopper_training", "evaluate.py", "--run", str(run), "--episodes", "2",
-                                "--horizon-s", "0.3"], timeout=EVALUATE_TIMEOUT)
-    assert evaluation.returncode == 0, evaluation.stdout[-2000:] + evaluation.stderr[-2000:]
-    report = json.loads(evaluation.stdout.strip().splitlines()[-1])
-    assert (report["task"], report["episodes"], report["horizon_s"]) == ("MonopedHopInPlace-v0", 2, pytest.approx(0.3))
-    for policy in ("greedy", "random"):
-        result = report[policy]
-        assert 0.0 < result["mean_time_upright_s"] <= 0.3 + 1e-9
-        assert "mean_drift" in result
+    for played in (run, run / "qtable_best.json"):
+        evaluation = ros_master.run(["rosrun", "hopper_training", "evaluate.py", "--run", str(played), "--episodes",
+                                    "2", "--horizon-s", "0.3"], timeout=EVALUATE_TIMEOUT)
+        assert evaluation.returncode == 0, evaluation.stdout[-2000:] + evaluation.stderr[-2000:]
+        report = json.loads(evaluation.stdout.strip().splitlines()[-1])
+        assert (report["task"], report["episodes"], report["horizon_s"]) == \
+            ("MonopedHopInPlace-v0", 2, pytest.approx(0.3))
+        for policy in ("greedy", "random"):
+            result = report[policy]
+            assert 0.0 < result["mean_time_upright_s"] <= 0.3 + 1e-9
+            assert "mean_drift" in result
     print(f"training {training_time:.1f} s")
 
 
