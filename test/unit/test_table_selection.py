@@ -197,3 +197,22 @@ def test_a_bad_selection_state_is_refused(values):
 def test_no_check_yet_round_trips():
     state = SelectionState()
     assert SelectionState.from_dict(state.to_dict()) == state and state.best_score == -math.inf
+
+
+def test_the_kept_table_ships_as_the_policy_s_qtable_with_the_checks_log(tmp_path):
+    from workspace_tools.ship import ship_run
+    run, summary, _ = train(tmp_path, cube_params())
+    destination = tmp_path / "policies" / "kept"
+    names = ship_run(run.path / BEST_CHECKPOINT, destination)
+    assert sorted(names) == sorted(path.name for path in destination.iterdir()) == \
+        ["episodes.csv", "learning_curve.png", "params.yaml", "qtable.json", "selection.csv", "summary.json"]
+    assert (destination / "qtable.json").read_bytes() == (run.path / BEST_CHECKPOINT).read_bytes()
+    assert (destination / "selection.csv").read_bytes() == (run.path / "selection.csv").read_bytes()
+    shipped = TrainedRun(destination, [ONE_DISK_WALK])
+    assert json.loads((destination / "qtable.json").read_text())["selected"]["episode"] == \
+        summary["selection"]["best_episode"] and callable(shipped.policy(None, 0))
+
+    (run.path / "selection.csv").unlink()
+    with pytest.raises(ValueError, match="not a run folder \\(missing selection.csv\\)"):
+        ship_run(run.path / BEST_CHECKPOINT, tmp_path / "policies" / "other")
+    assert not (tmp_path / "policies" / "other").exists()

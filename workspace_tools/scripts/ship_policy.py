@@ -8,6 +8,8 @@ folder whole.
            hopper_training/policies/residual_forward_sac
        ./ws exec rosrun workspace_tools ship_policy.py training_results/end_to_end-bc_dagger/s0 \
            hopper_training/policies/end_to_end
+       ./ws exec rosrun workspace_tools ship_policy.py training_results/hop_in_place/s0/qtable_best.json \
+           hopper_training/policies/hop_in_place_push075    # the table the checks kept (params' selection)
 """
 import argparse
 import sys
@@ -18,7 +20,8 @@ from workspace_tools.ship import ship_run
 
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
-    parser.add_argument("run", type=Path, help="a run folder (training_results/<task>/<run>) or its latest link")
+    parser.add_argument("run", type=Path, help="a run folder (training_results/<task>/<run>) or its latest link; a "
+                        "tabular run's qtable_best.json: the table its checks kept")
     parser.add_argument("destination", type=Path, help="the folder to write, e.g. <package>/policies/<name>")
     args = parser.parse_args(argv)
     try:

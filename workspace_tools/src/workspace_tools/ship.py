@@ -16,6 +16,10 @@ package>` when the file lies in a ROS package (a folder with a package.xml: `rob
 else as null (agent.json's `agent_params` holds its values): a shipped policy names no path of the machine it was
 trained on.
 
+A tabular run whose greedy table was checked during training (robot_rl.agents.qlearn.selection) ships the table the
+checks kept when RUN is its qtable_best.json: that file as the policy's qtable.json (its `selected` entry says which
+check kept it), beside the run's results and its selection.csv.
+
 Nothing ships that evaluate.py would not play: the run is loaded as evaluate.py loads it (a deep run's model.zip
 must be the one its agent.json recorded), the policy is written to a folder of its own beside the destination and
 loaded back from there (a deep policy's weights into the model rebuilt on the task's env), and only then does that
@@ -41,6 +45,7 @@ from typing import Any
 
 from hopper_training.teacher.student import ARCHITECTURE_FILE, CHECKPOINT_FORMAT, RESUME_ENTRIES, WEIGHTS_FILE
 from robot_rl import RunFileError, TaskSpec, TrainedRun, make_env, write_bytes_atomic, write_json_atomic
+from robot_rl.agents.qlearn.selection import BEST_CHECKPOINT, SELECTION_CSV
 from workspace_tools.robots import ROBOTS
 
 SUMMARY = "summary.json"
@@ -127,14 +132,18 @@ def load_back(checkpoint: Path, tasks: Sequence[TaskSpec[Any]]) -> TrainedRun:
 
 
 def ship_run(run: Path, destination: Path, tasks: Sequence[TaskSpec[Any]] | None = None) -> list[str]:
-    """Ship run (a run folder or its `latest` link) as the folder destination, replacing whatever policy was there
-    in one rename; returns the names written. ValueError for a folder that is not a finished run, or a policy that
-    does not load (as evaluate.py would load it) from the run or from what would be shipped; nothing changes then."""
+    """Ship run (a run folder or its `latest` link, or a tabular run's qtable_best.json) as the folder destination,
+    replacing whatever policy was there in one rename; returns the names written. ValueError for a folder that is not
+    a finished run, or a policy that does not load (as evaluate.py would load it) from the run or from what would be
+    shipped; nothing changes then."""
     run = run.resolve()
-    missing = [name for name in RESULTS if not (run / name).is_file()]
+    kept = run.name == BEST_CHECKPOINT and run.is_file()  # the table the checks kept, not the run's last
+    if kept:
+        run = run.parent
+    missing = [name for name in (*RESULTS, *([SELECTION_CSV] if kept else [])) if not (run / name).is_file()]
     if missing:
         raise ValueError(f"{run}: not a run folder (missing {', '.join(missing)})")
-    deep = (run / DEEP_CHECKPOINT).is_file()
+    deep = not kept and (run / DEEP_CHECKPOINT).is_file()
     if not deep and not (run / TABULAR_CHECKPOINT).is_file():
         raise ValueError(f"{run}: no checkpoint ({TABULAR_CHECKPOINT} or {DEEP_CHECKPOINT})")
     weights = _weight_files(run) if deep else []
@@ -143,13 +152,13 @@ def ship_run(run: Path, destination: Path, tasks: Sequence[TaskSpec[Any]] | None
     tasks = all_tasks() if tasks is None else tasks
     checkpoint_name = DEEP_CHECKPOINT if deep else TABULAR_CHECKPOINT
     try:
-        load_back(run / checkpoint_name, tasks)
+        load_back(run / (BEST_CHECKPOINT if kept else checkpoint_name), tasks)
     except (RunFileError, ValueError) as error:
         raise ValueError(f"{run}: not shipped, its policy does not load: {error}") from None
     destination.parent.mkdir(parents=True, exist_ok=True)
     staged = Path(tempfile.mkdtemp(prefix=f".{destination.name}.shipping-", dir=destination.parent))
     try:
-        names = _write(run, staged, deep, weights)
+        names = _write(run, staged, deep, weights, kept)
         try:
             load_back(staged / checkpoint_name, tasks)
         except (RunFileError, ValueError) as error:
@@ -177,12 +186,16 @@ def _weight_files(run: Path) -> list[str]:
     return names
 
 
-def _write(run: Path, folder: Path, deep: bool, weights: Sequence[str]) -> list[str]:
+def _write(run: Path, folder: Path, deep: bool, weights: Sequence[str], kept: bool = False) -> list[str]:
     for name in RESULTS:
         if name == SUMMARY:
             _copy_json(run / name, folder / name)
         else:
             shutil.copyfile(run / name, folder / name)
+    if kept:
+        shutil.copyfile(run / BEST_CHECKPOINT, folder / TABULAR_CHECKPOINT)
+        shutil.copyfile(run / SELECTION_CSV, folder / SELECTION_CSV)
+        return [*RESULTS, TABULAR_CHECKPOINT, SELECTION_CSV]
     if not deep:
         shutil.copyfile(run / TABULAR_CHECKPOINT, folder / TABULAR_CHECKPOINT)
         return [*RESULTS, TABULAR_CHECKPOINT]
