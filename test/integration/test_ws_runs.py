@@ -91,6 +91,7 @@ def test_two_runs_started_together_take_two_masters(tmp_path):
             finally:
                 stop(run)
     assert [run.returncode for run in runs] == [130, 130], [output[-2000:] for output in outputs]
+    assert not (tmp_path / "runs" / "port-11311.claim").exists(), "the run that claimed 11311 let it go"
 
 
 def test_a_run_ends_with_its_block_and_a_resume_of_it_says_it_is_complete(tmp_path):

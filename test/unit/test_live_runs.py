@@ -37,6 +37,11 @@ def test_port_11311_is_taken_once_and_a_live_claim_keeps_others_off_it(tmp_path,
     assert not live_runs.claim_default_port(tmp_path) and claim.read_text() == "1\n"
     claim.write_text(f"{2**22 + 12345}\n")  # a claimer that is gone
     assert live_runs.claim_default_port(tmp_path) and claim.read_text() == f"{os.getpid()}\n"
+    live_runs.release_default_port(tmp_path)
+    assert not claim.exists()
+    claim.write_text("1\n")
+    live_runs.release_default_port(tmp_path)
+    assert claim.read_text() == "1\n", "another process's claim is not ours to remove"
 
 
 @pytest.mark.parametrize("holder", ["", "garbage"])

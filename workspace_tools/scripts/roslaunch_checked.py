@@ -34,7 +34,7 @@ import rospkg
 import yaml
 
 from workspace_tools.launch_reaper import watch_launch
-from workspace_tools.live_runs import RECORD_VARIABLE, record
+from workspace_tools.live_runs import RECORD_VARIABLE, record, release_default_port
 
 INTERRUPTED = 130  # the shell's code for a command ended by SIGINT
 
@@ -152,6 +152,7 @@ def main(argv) -> int:
     finally:
         if recorded is not None:
             recorded.unlink(missing_ok=True)
+            release_default_port(recorded.parent)
         parent.shutdown()
     if codes.finished is not None:
         code = codes.finished or (codes.failures[0] if codes.failures else 0)

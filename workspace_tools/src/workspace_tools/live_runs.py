@@ -4,12 +4,12 @@ another terminal reach the run's ROS master without anyone exporting ROS_MASTER_
 `./ws run` takes ROS's default master port (11311) when it is free, a free port only when it is taken
 (`run_master_uri`). A run that takes 11311 claims it in the runs folder (`port-11311.claim`, its pid: ./ws execs
 into the launcher) before its master is up, so that a second `./ws run` started in the same second takes another
-port instead of the same one; a claim whose process is gone counts for nothing. roslaunch_checked.py, once the
-master is up, writes one JSON file per run into the runs folder (`.ws/runs/`, or $WS_RUNS_DIR): the launcher's pid,
-the master's URI, roslaunch's /run_id, the command and when it started; it removes the file when it ends. A file
-outlives its run only if the launcher is killed with SIGKILL: `live_runs()` then finds its pid gone and removes it,
-and skips any run whose master does not answer with the /run_id recorded (a later master on the same port is
-another run's).
+port instead of the same one; the launcher removes the claim when it ends, and a claim whose process is gone
+counts for nothing. roslaunch_checked.py, once the master is up, writes one JSON file per run into the runs folder
+(`.ws/runs/`, or $WS_RUNS_DIR): the launcher's pid, the master's URI, roslaunch's /run_id, the command and when it
+started; it removes the file when it ends. A file outlives its run only if the launcher is killed with SIGKILL:
+`live_runs()` then finds its pid gone and removes it, and skips any run whose master does not answer with the
+/run_id recorded (a later master on the same port is another run's).
 """
 from __future__ import annotations
 
@@ -68,6 +68,20 @@ def claim_default_port(folder: Path) -> bool:
             return False
         claim.write_text(f"{os.getpid()}\n")
     return True
+
+
+def release_default_port(folder: Path) -> None:
+    """Remove this process's claim on DEFAULT_PORT (its run ends), if it holds one."""
+    claim = folder / f"port-{DEFAULT_PORT}.claim"
+    if not claim.is_file():
+        return
+    with open(folder / "ports.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            if int(claim.read_text()) == os.getpid():
+                claim.unlink()
+        except (OSError, ValueError):
+            pass
 
 
 def run_master_uri() -> tuple[str, str]:
