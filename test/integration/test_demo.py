@@ -73,7 +73,7 @@ def test_the_refusing_hook_really_refuses_the_controller(tmp_path):
 def test_an_unknown_policy_gets_one_line_naming_the_shipped_ones(tmp_path):
     result = demo("hopper", "policy:=nope", cwd=tmp_path)
     assert result.returncode != 0 and "no shipped policy 'nope' for hopper (known: demo, end_to_end, " \
-        "end_to_end_forward, end_to_end_scratch, residual_forward_sac, residual_in_place_sac)" \
+        "end_to_end_forward, end_to_end_scratch, hop_in_place_push075, residual_forward_sac, residual_in_place_sac)" \
         in result.stderr, result.stderr
     assert not list(tmp_path.iterdir())
 
