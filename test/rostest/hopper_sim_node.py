@@ -6,6 +6,7 @@ import signal
 import subprocess
 import sys
 import threading
+import time
 import unittest
 import xml.etree.ElementTree as ElementTree
 
@@ -91,6 +92,15 @@ class HopperSimTest(unittest.TestCase):
         cls.sensors = (cls.joints, cls.odom, cls.imu, cls.contact)
         for subscriber in cls.sensors:
             subscriber.wait_for_connection(TIMEOUT)
+        # rospy's publisher adds a subscriber just after the subscriber counts the connection: a message sent in
+        # between is lost (a first reset's IMU message was, on a loaded machine). Step until every sensor has
+        # delivered one; the tests' resets come after.
+        deadline = time.monotonic() + TIMEOUT
+        while not all(subscriber.count for subscriber in cls.sensors):
+            if time.monotonic() > deadline:
+                raise AssertionError(f"no message on {[s.topic for s in cls.sensors if not s.count]} within "
+                                     f"{TIMEOUT} s of stepping the sim; is hopper_sim.launch's sim node running?")
+            cls.sim.step(1)
         cls.tf = TfRecorder("/tf")
         cls.tf_static = TfRecorder("/tf_static")
         urdf = ElementTree.fromstring(rospy.get_param("/robot_description"))
