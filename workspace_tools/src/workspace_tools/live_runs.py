@@ -19,6 +19,8 @@ import os
 import socket
 import time
 import xmlrpc.client
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -53,9 +55,9 @@ def free_port() -> int:
         return int(probe.getsockname()[1])
 
 
-def claim_default_port(folder: Path) -> bool:
-    """Whether this process takes DEFAULT_PORT: free, and claimed by no other live process (a run whose master is
-    not up yet). If so, the claim is this process's (written under a lock, so two callers never both take it)."""
+@contextmanager
+def _default_port_claim(folder: Path) -> Iterator[tuple[Path, int]]:
+    """Under the runs folder's lock: (the claim file of DEFAULT_PORT, the pid it names; 0 if none or unreadable)."""
     folder.mkdir(parents=True, exist_ok=True)
     claim = folder / f"port-{DEFAULT_PORT}.claim"
     with open(folder / "ports.lock", "a") as lock:
@@ -64,6 +66,13 @@ def claim_default_port(folder: Path) -> bool:
             holder = int(claim.read_text())
         except (OSError, ValueError):
             holder = 0
+        yield claim, holder
+
+
+def claim_default_port(folder: Path) -> bool:
+    """Whether this process takes DEFAULT_PORT: free, and claimed by no other live process (a run whose master is
+    not up yet). If so, the claim is this process's (written under a lock, so two callers never both take it)."""
+    with _default_port_claim(folder) as (claim, holder):
         if holder > 0 and holder != os.getpid() and _alive(holder) or not port_is_free(DEFAULT_PORT):
             return False
         claim.write_text(f"{os.getpid()}\n")
@@ -72,16 +81,11 @@ def claim_default_port(folder: Path) -> bool:
 
 def release_default_port(folder: Path) -> None:
     """Remove this process's claim on DEFAULT_PORT (its run ends), if it holds one."""
-    claim = folder / f"port-{DEFAULT_PORT}.claim"
-    if not claim.is_file():
+    if not (folder / f"port-{DEFAULT_PORT}.claim").is_file():
         return
-    with open(folder / "ports.lock", "a") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        try:
-            if int(claim.read_text()) == os.getpid():
-                claim.unlink()
-        except (OSError, ValueError):
-            pass
+    with _default_port_claim(folder) as (claim, holder):
+        if holder == os.getpid():
+            claim.unlink(missing_ok=True)
 
 
 def run_master_uri() -> tuple[str, str]:
