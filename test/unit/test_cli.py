@@ -54,9 +54,13 @@ def test_no_command_prints_the_usage_and_exits_2(capsys):
     (["demo", "fly"], "unknown robot 'fly' (known: cube, hopper)"),
     (["demo", "cube", "policy:=../x"], "no shipped policy '../x' for cube (known: demo)"),
     (["demo", "cube", "a.mp4", "b.mp4"],
-     "usage: ./ws demo [cube|hopper] [policy:=NAME|run:=RUN_FOLDER] [push:=V] [VIDEO.mp4]"),
+     "usage: ./ws demo [cube|hopper] [policy:=NAME|run:=RUN_FOLDER] [push:=V] [seed:=N] [VIDEO.mp4]"),
     (["demo", "hopper", "speed:=1"],
-     "usage: ./ws demo [cube|hopper] [policy:=NAME|run:=RUN_FOLDER] [push:=V] [VIDEO.mp4]"),
+     "usage: ./ws demo [cube|hopper] [policy:=NAME|run:=RUN_FOLDER] [push:=V] [seed:=N] [VIDEO.mp4]"),
+    (["demo", "hopper", "push:=1", "push:=2"], cli.DEMO_USAGE),
+    (["demo", "hopper", "policy:=demo", "run:=/tmp"], cli.DEMO_USAGE),
+    (["demo", "hopper", "push:="], "push:=: the kicks' speed in m/s, a number of 0 or more (e.g. push:=0.75)"),
+    (["demo", "hopper", "seed:=-1"], "seed:=-1: the episode's seed, a whole number of 0 or more (e.g. seed:=1000)"),
     (["demo", "hopper", "push:=-1"], "push:=-1: the kicks' speed in m/s, a number of 0 or more (e.g. push:=0.75)"),
     (["demo", "hopper", "push:=nan"], "push:=nan: the kicks' speed in m/s, a number of 0 or more (e.g. push:=0.75)"),
     (["demo", "cube", "run:=/nonexistent"],
@@ -159,11 +163,14 @@ def test_demo_plays_the_shipped_policy_into_demos_and_never_overwrites(no_exec, 
     assert capsys.readouterr().err == "[ws] error: demo_cube.mp4 exists: give another name (or delete it)\n"
 
 
-def test_demo_with_pushes_passes_them_to_evaluate(no_exec, tmp_path):
-    cli.main(["demo", "hopper", "policy:=hop_in_place_push075", "push:=0.75", str(tmp_path / "kicked.mp4")])
+def test_demo_with_pushes_and_a_seed_passes_them_to_evaluate_in_any_order(no_exec, tmp_path):
+    video = str(tmp_path / "kicked.mp4")
+    cli.main(["demo", "hopper", "policy:=hop_in_place_push075", "push:=0.75", video])
+    cli.main(["demo", "hopper", "seed:=1000", video, "push:=0.75", "policy:=hop_in_place_push075"])
     shipped = str(REPO / "hopper_training" / "policies" / "hop_in_place_push075")
-    assert no_exec == [["rosrun", "hopper_training", "evaluate.py", "--run", shipped, "--episodes", "1", "--video",
-                        str(tmp_path / "kicked.mp4"), "--video-episodes", "1", "--push", "0.75"]]
+    played = ["rosrun", "hopper_training", "evaluate.py", "--run", shipped, "--episodes", "1", "--video", video,
+              "--video-episodes", "1", "--push", "0.75"]
+    assert no_exec == [played, [*played, "--seed", "1000"]]
 
 
 def test_sweep_results_go_where_run_puts_them_unless_given(no_exec):

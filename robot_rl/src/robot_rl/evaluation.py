@@ -63,7 +63,7 @@ from .envs.backends.base import SimStateError
 from .envs.backends.factory import over_ros
 from .envs.backends.ros import init_ros_node
 from .envs.pushes import PUSH_GAP_S
-from .params import ParamError
+from .params import MAX_SEED, ParamError
 from .policies import ScriptedPolicy, constant_policy, random_actions
 from .runs.loaded import LoadedRun
 from .runs.results import RunDirectory, RunFileError, aggregate
@@ -71,7 +71,6 @@ from .runs.video import VideoRecorder
 from .task import TaskSpec, find_task, make_env, play_episode
 
 MAX_VIDEO_SIDE = 4096
-MAX_SEED = 2**31 - 1      # as a training's seed:= (ROS's int, numpy's seed)
 MAX_HORIZON_S = 86400.0   # s of sim time per episode at most: a day
 EVAL_INITIAL_TILT = (0.02, 0.05)  # rad: evaluation episodes start leaning this much, where the task can
 

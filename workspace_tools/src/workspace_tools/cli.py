@@ -46,11 +46,12 @@ does only what is missing, so a second run starts in seconds.
   ./ws sweep [cube|hopper] [seeds:=0-9] [NAME:=V1,V2 ...] [max_steps:=N] [name:=SWEEP] [resume:=true] [cluster:=ray|ADDRESS]
                               many training runs on Ray Tune, a table and a plot (installs requirements-distributed.txt)
   ./ws cluster start|join ADDRESS|stop|status  this machine's Ray node (installs requirements-distributed.txt)
-  ./ws demo [cube|hopper] [policy:=NAME|run:=RUN_FOLDER] [push:=V] [VIDEO.mp4]  a shipped trained policy
+  ./ws demo [cube|hopper] [policy:=NAME|run:=RUN_FOLDER] [push:=V] [seed:=N] [VIDEO.mp4]  a shipped policy
                               (<package>/policies/NAME, default demo), or a run of yours, plays one episode, recorded
                               to VIDEO.mp4 (never overwritten; default demos/demo_<robot>.mp4, or demos/<run>.mp4,
                               a new name if it exists), then evaluate.py's JSON (an SB3 agent's policy also installs
-                              requirements-deep.txt); push:=V kicks the base at V m/s (evaluate.py --push)
+                              requirements-deep.txt); push:=V kicks the base at V m/s (evaluate.py --push);
+                              seed:=N seeds the episode (evaluate.py --seed, default 0)
   ./ws setup [deep|distributed]  only the set-up (deep: also torch and stable-baselines3; distributed: also Ray)
   ./ws help                   this text and the arguments of every launch file ./ws run starts
 """  # noqa: E501 (the usage's lines are as wide as its commands)
@@ -268,20 +269,31 @@ def cluster(args: list[str]) -> Plan:
     return Plan(_requirements(DISTRIBUTED), [sys.executable, "-m", "robot_rl.workers.cluster", *args])
 
 
+DEMO_USAGE = "usage: ./ws demo [cube|hopper] [policy:=NAME|run:=RUN_FOLDER] [push:=V] [seed:=N] [VIDEO.mp4]"
+
+
 def demo(args: list[str]) -> Plan:
-    name, policy, run_path = DEMO_ROBOT, "demo", ""
+    name = DEMO_ROBOT
     if args and not args[0].endswith(".mp4") and ":=" not in args[0]:
         name = args.pop(0)
-    if args and args[0].startswith("policy:="):
-        policy = args.pop(0).removeprefix("policy:=")
-    elif args and args[0].startswith("run:="):
-        run_path = args.pop(0).removeprefix("run:=")
-    push = args.pop(0).removeprefix("push:=") if args and args[0].startswith("push:=") else ""
-    if push and not re.fullmatch(r"\d+(\.\d*)?|\.\d+", push):
+    given: dict[str, str] = {}
+    for arg in [a for a in args if ":=" in a]:  # NAME:=V in any order, each once
+        key, _, value = arg.partition(":=")
+        if key not in ("policy", "run", "push", "seed") or key in given:
+            raise WsError(DEMO_USAGE)
+        given[key] = value
+        args.remove(arg)
+    if "policy" in given and "run" in given:
+        raise WsError(DEMO_USAGE)
+    policy, run_path = given.get("policy", "demo"), given.get("run", "")
+    push, seed = given.get("push", ""), given.get("seed", "")
+    if "push" in given and not re.fullmatch(r"\d+(\.\d*)?|\.\d+", push):
         raise WsError(f"push:={push}: the kicks' speed in m/s, a number of 0 or more (e.g. push:=0.75)")
+    if "seed" in given and not re.fullmatch(r"\d+", seed):  # evaluate.py checks its range
+        raise WsError(f"seed:={seed}: the episode's seed, a whole number of 0 or more (e.g. seed:=1000)")
     robot = ROBOTS[_robot(name)]
-    if len(args) > 1 or args and ":=" in args[0]:
-        raise WsError("usage: ./ws demo [cube|hopper] [policy:=NAME|run:=RUN_FOLDER] [push:=V] [VIDEO.mp4]")
+    if len(args) > 1:
+        raise WsError(DEMO_USAGE)
     if args and (not args[0].endswith(".mp4") or os.path.isdir(args[0])):
         folder = " (a folder)" if os.path.isdir(args[0]) else ""
         raise WsError(f"the video must be an .mp4 file, got '{args[0]}'{folder}")
@@ -303,7 +315,7 @@ def demo(args: list[str]) -> Plan:
     needs = _requirements(DEEP) if (played / "model.zip").is_file() else []
     todo = Plan(needs, ["rosrun", robot.package, "evaluate.py", "--run", str(played), "--episodes", "1", "--video",
                         os.path.realpath(args[0]) if args else "", "--video-episodes", "1",
-                        *(["--push", push] if push else [])])
+                        *(["--push", push] if push else []), *(["--seed", seed] if seed else [])])
 
     def default_video() -> None:  # chosen when it runs (not in `needs`): demos/, a new name if taken
         if not args:
