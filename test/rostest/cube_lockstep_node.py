@@ -153,11 +153,15 @@ class CubeLockstepTest(unittest.TestCase):
                 frames.update(transform.child_frame_id for transform in msg.transforms)
 
         tf_subscriber = rospy.Subscriber("/tf", TFMessage, on_tf, queue_size=None, tcp_nodelay=True)
-        # rospy gives a node one receive queue per topic, and its own /clock subscriber (use_sim_time) made it 1:
-        # queue_size=None keeps that, and on a loaded machine all but the last of the /clock messages read at once
-        # were dropped here (a gap of 30 ms seen). A queue as long as the whole run keeps every one.
+        # rospy gives a node one connection per topic, and its own /clock subscriber (use_sim_time) made it at
+        # init_node with queue_size 1 (rospy/impl/simtime.py); the connection keeps the size it was made with
+        # (rospy/impl/tcpros_pubsub.py), so on a loaded machine all but the last of the /clock messages read at
+        # once were dropped here (gaps of 20-30 ms seen). Unbounded, the connection keeps every one.
         clock_subscriber = rospy.Subscriber("/clock", Clock, on_clock, queue_size=10_000, tcp_nodelay=True)
         try:
+            self.assertTrue(clock_subscriber.impl.connections, "no /clock connection: is the sim publishing /clock?")
+            for connection in clock_subscriber.impl.connections:
+                connection.protocol.queue_size = None
             deadline = time.monotonic() + TIMEOUT
             while "cube_body" not in frames:  # the sim sends it once it sees /tf's subscriber: this one
                 self.assertLess(time.monotonic(), deadline, "no /tf of cube_body after lockstep steps: the sim "
