@@ -15,9 +15,11 @@ from hopper_training.controller.core import HopController, HopGains, HopInput, P
 from hopper_training.envs.end_to_end import END_TO_END
 from hopper_training.envs.hop_cycle import controller_params
 from hopper_training.envs.hop_in_place import (
+    COARSE_SPEED_EDGES,
     HOP_IN_PLACE,
     SPEED_EDGES,
     HopInPlaceStateKey,
+    SpeedStateKey,
     action_meaning,
     do_nothing_action,
     offsets,
@@ -68,6 +70,16 @@ def test_the_push075_config_is_the_push_config_with_its_marked_keys_alone():
     assert sorted(line.split(":")[0] for line in text.splitlines() if "# push075:" in line) == sorted(marked)
 
 
+def test_the_push075_speed_config_is_the_push075_config_with_its_marked_keys_alone():
+    folder = HOP_IN_PLACE.config_path.parent
+    strong = HOP_IN_PLACE.load_params(folder / "hop_in_place_push075.yaml")
+    by_speed = HOP_IN_PLACE.load_params(folder / "hop_in_place_push075_speed.yaml")
+    marked = {"nepisodes": 600, "state_key": "speed"}
+    assert by_speed == dataclasses.replace(strong, **marked)
+    text = (folder / "hop_in_place_push075_speed.yaml").read_text()
+    assert sorted(line.split(":")[0] for line in text.splitlines() if "# speed:" in line) == sorted(marked)
+
+
 def test_the_state_key_bins_speed_and_the_sign_of_the_lean_along_the_velocity():
     key = HopInPlaceStateKey(PARAMS)
 
@@ -78,6 +90,18 @@ def test_the_state_key_bins_speed_and_the_sign_of_the_lean_along_the_velocity():
     assert len(keys) == (len(SPEED_EDGES) + 1) * 2 == 16
     assert of(0.06, 0.01) == of(0.09, 0.3) != of(0.11, 0.3)
     assert of(0.0, 0.01) != of(0.0, -0.01)
+
+
+def test_state_key_speed_bins_the_speed_alone():
+    params = PARAMS.with_changes("test", state_key="speed")
+    key = HOP_IN_PLACE.state_key(params)
+    assert isinstance(key, SpeedStateKey)
+
+    def of(speed, lean):
+        return key.key(np.array([0.0, 0.0, speed, lean, 0.0, 0.0, 0.9, 0.3], dtype=np.float32))
+    assert len({of(s, 0.1) for s in (0.0, 0.2, 0.3, 0.6, 2.0)}) == len(COARSE_SPEED_EDGES) + 1 == 5
+    assert of(0.2, -0.3) == of(0.12, 0.3) != of(0.3, 0.3)
+    assert key.to_dict() != HOP_IN_PLACE.state_key(PARAMS).to_dict()  # a table of one is refused by the other
 
 
 def test_a_step_runs_the_hop_cycle_from_lift_off_to_the_next_lift_off(env):

@@ -38,7 +38,7 @@ Observation: Box(8,) float32, at the decision point
     6     base height (m)
     7     the hop's duration (s of sim time since the last decision point)
 State key (state_key hop): speed in bins (edges SPEED_EDGES) x the sign of the lean along the velocity:
-    8 x 2 = 16 keys (HopInPlaceStateKey).
+    8 x 2 = 16 keys (HopInPlaceStateKey); state_key speed: the speed alone in 5 coarser bins (SpeedStateKey).
 Reward: the sum of the terms, each in info as reward_<term>
     alive  alive_reward per second of sim time the hop lasted (alive_reward x duration)
     speed  -speed_weight x the speed at the decision point (hop in place: moving costs)
@@ -70,11 +70,13 @@ from .hop_cycle import HopCycleEnv, HopCycleParams, hop_cycle_metrics
 
 SPEED_EDGES = [0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5]  # m/s
 LEAN_EDGES = [0.0]                          # the sign of the lean towards the velocity
+COARSE_SPEED_EDGES = [0.1, 0.25, 0.5, 0.8]  # m/s: state_key speed's bins
 
 
 @dataclass(frozen=True, kw_only=True)
 class HopInPlaceParams(HopCycleParams):
-    state_key: str = param(choices=("hop",), default="hop", doc="the Q-learning state key: hop (HopInPlaceStateKey)")
+    state_key: str = param(choices=("hop", "speed"), default="hop",
+                           doc="the Q-learning state key: hop (HopInPlaceStateKey) or speed (SpeedStateKey)")
     offset_min: float = param(low=-0.2, high=0.2, doc="m: the foot placement offset of offset index 0")
     offset_max: float = param(low=-0.2, high=0.2, doc="m: that of the last offset index")
     offset_levels: int = param(low=1, high=15, doc="offsets to choose from")
@@ -136,8 +138,22 @@ class HopInPlaceStateKey:
         return {"format": "hopper_training.hop_level_state_key/2", "discretiser": self.discretiser.to_dict()}
 
 
+class SpeedStateKey:
+    """The speed alone, in coarse bins (COARSE_SPEED_EDGES): 5 keys, so that each (state, action) pair is sampled
+    more often than under HopInPlaceStateKey's 16 keys when pushes make the returns noisy."""
+
+    def __init__(self, params: HopInPlaceParams):
+        self.discretiser = Discretiser.from_edges([COARSE_SPEED_EDGES])
+
+    def key(self, observation: np.ndarray) -> str:
+        return self.discretiser.key([float(observation[2])])
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"format": "hopper_training.hop_in_place_speed_key/1", "discretiser": self.discretiser.to_dict()}
+
+
 def hop_in_place_state_key(params: HopInPlaceParams) -> StateKey:
-    return HopInPlaceStateKey(params)
+    return SpeedStateKey(params) if params.state_key == "speed" else HopInPlaceStateKey(params)
 
 
 HOP_IN_PLACE = TaskSpec(
