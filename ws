@@ -137,6 +137,12 @@ private_master() {
 
 cli() { python -m workspace_tools.cli "$@"; }
 
+# One ./ws sets up at a time: two makes in one build folder break each other's configure. The lock is let go
+# before the command runs, so that a long run never holds up another terminal's ./ws.
+mkdir -p "$STATE"
+exec {setup_lock}>"$STATE/setup.lock"
+flock -w 10 "$setup_lock" || { log "waiting for another ./ws to finish its setup (apt, pip, the catkin build)"
+  flock "$setup_lock"; }
 setup
 # What the command needs besides: one line each, `apt PACKAGE`, `requirements FILE` or `private-master`; a
 # command or argument the CLI refuses ends here, with its message and exit code.
@@ -150,5 +156,6 @@ while read -r kind value; do
   esac
 done <<<"$needs"
 [ ${#apt_packages[@]} -eq 0 ] || ensure_apt_packages "${apt_packages[@]}"
+exec {setup_lock}>&-
 enter_environment
 exec python -m workspace_tools.cli "$@"

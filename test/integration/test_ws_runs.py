@@ -126,3 +126,18 @@ def test_the_cube_s_default_run_prints_at_most_40_lines(tmp_path):
     lines = output.splitlines()
     assert len(lines) <= 40, output
     assert f"train further: ./ws run cube results_dir:={tmp_path}/results resume:=true run:=" in lines[-1], output
+
+
+def test_three_ws_at_once_after_a_script_changed_all_run(tmp_path):
+    """Three ./ws at once after a script catkin installs changed: one rebuilds while the others wait on the setup
+    lock (without it two makes in the one build folder broke each other's configure: "catkin build failed")."""
+    os.utime(REPO / "hopper_training" / "scripts" / "evaluate.py")  # newer than the build: catkin configures again
+    commands = [subprocess.Popen([str(REPO / "ws"), "exec", "true"], env=ws_env(tmp_path), cwd=tmp_path,
+                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True) for _ in range(3)]
+    try:
+        outputs = [command.communicate(timeout=600)[0] for command in commands]
+    finally:
+        for command in commands:
+            stop(command)
+    for command, output in zip(commands, outputs):
+        assert command.returncode == 0 and "catkin build failed" not in output, output
