@@ -7,7 +7,7 @@
   rosrun hopper_training evaluate.py --policy random --task hop_in_place              # (controller too)
   rosrun hopper_training evaluate.py --policy do_nothing --task residual_forward      # no residual
   rosrun hopper_training evaluate.py --policy constant --action 2 --task hop_in_place # one action every hop
-  rosrun hopper_training evaluate.py --policy placement_by_speed --task hop_in_place  # +2 cm, +4 cm above 0.5 m/s
+  rosrun hopper_training evaluate.py --policy placement_by_speed --task hop_in_place  # +2, +4, +6 cm by speed
 
 A run's metrics: mean_return, mean_time_upright_s, upright_whole_horizon_rate and mean_x_distance
 (m along +x). See robot_rl/src/robot_rl/evaluation.py for every option.

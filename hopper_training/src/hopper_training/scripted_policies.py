@@ -43,7 +43,8 @@ def placement_by_speed(env: Any, speed: float) -> Callable[[np.ndarray], int]:
     """--policy placement_by_speed on hop_in_place: a hand-made placement that depends on the state, the baseline
     beside the constant ones under strong pushes. The foot lands 2 cm + 2 cm per m/s of the speed at lift-off ahead
     along the velocity, rounded to the nearest offset level (hop_in_place.yaml's: +2 cm up to 0.5 m/s, +4 cm up to
-    1.5 m/s), with the default thrust: a rule a Q-table over the task's state key can hold."""
+    1.5 m/s, +6 cm up to 2.5 m/s), with the default thrust. A Q-table over either of the task's state keys can hold
+    it up to 1.5 m/s, not above: their top speed bins (above 0.5 and 0.8 m/s) take one offset for every faster hop."""
     params = hop_in_place_params(env, speed, "placement_by_speed")
     levels = np.array(offsets(params))
     thrust = do_nothing_action(params) % params.thrust_levels
